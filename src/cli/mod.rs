@@ -1,0 +1,102 @@
+//! The `avsep` command line: simulate scenes, process them offline, score the results, print the
+//! configuration (and, later, serve sessions).
+
+mod config;
+mod eval;
+mod process;
+mod progress;
+mod simulate;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+pub use progress::Progress;
+
+/// avsep: online audio-visual multi-speaker tracking and separation.
+#[derive(Debug, Parser)]
+#[command(name = "avsep", version, about, propagate_version = true)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Simulate a room and write a scene folder with known truth.
+    Simulate(simulate::SimulateArgs),
+    /// Run the pipeline offline on a scene folder and write an output folder.
+    Process(process::ProcessArgs),
+    /// Score an output folder against its scene's truth.
+    Eval(eval::EvalArgs),
+    /// Print the pipeline configuration (defaults, or a file merged over them).
+    Config(config::ConfigArgs),
+}
+
+/// A command failure with its exit code: 2 for bad input (arguments, scenes, configuration),
+/// 1 for everything else.
+#[derive(Debug)]
+pub struct CliError {
+    /// Process exit code.
+    pub code: u8,
+    /// Message printed to stderr.
+    pub message: String,
+}
+
+impl CliError {
+    /// Bad input: exit code 2.
+    pub fn input(message: impl std::fmt::Display) -> Self {
+        Self {
+            code: 2,
+            message: message.to_string(),
+        }
+    }
+
+    /// A failure while running: exit code 1.
+    pub fn runtime(message: impl std::fmt::Display) -> Self {
+        Self {
+            code: 1,
+            message: message.to_string(),
+        }
+    }
+}
+
+impl From<crate::scene::SceneError> for CliError {
+    fn from(e: crate::scene::SceneError) -> Self {
+        Self::input(e)
+    }
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> Result<(), CliError> {
+    match cli.command {
+        Command::Simulate(a) => simulate::run(a),
+        Command::Process(a) => process::run(a),
+        Command::Eval(a) => eval::run(a),
+        Command::Config(a) => config::run(a),
+    }
+}
+
+/// Entry point of the binary.
+pub fn main() -> ExitCode {
+    init_logging();
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", e.message);
+            ExitCode::from(e.code)
+        }
+    }
+}
+
+fn init_logging() {
+    use tracing_subscriber::EnvFilter;
+    let filter = EnvFilter::try_from_env("AVSEP_LOG").unwrap_or_else(|_| EnvFilter::new("warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}

@@ -1,0 +1,121 @@
+//! The output folder written by `avsep process` (and by live clients), read back for evaluation.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::geometry::Layout;
+use crate::label::Label;
+
+use super::format::TracksLine;
+use super::reader::{load_audio_measurements, parse_json, read_jsonl};
+use super::{Audio, AudioMeasurementFrame, SceneError};
+
+/// File names inside an output folder.
+pub mod files {
+    /// Tracker estimates, one line per tracker step.
+    pub const TRACKS: &str = "tracks.jsonl";
+    /// Localiser output, one line per array and frame.
+    pub const MEASUREMENTS: &str = "measurements.jsonl";
+    /// Who spoke when.
+    pub const DIARIZATION: &str = "diarization.rttm";
+    /// Run figures.
+    pub const SUMMARY: &str = "summary.json";
+    /// Folder of separated streams, `<label>.wav`.
+    pub const AUDIO_DIR: &str = "audio";
+}
+
+/// What an output folder holds; every part is optional.
+#[derive(Debug, Clone, Default)]
+pub struct Output {
+    /// The folder.
+    pub dir: PathBuf,
+    /// Tracker estimates in time order.
+    pub tracks: Option<Vec<TracksLine>>,
+    /// Localiser output.
+    pub measurements: Option<Vec<AudioMeasurementFrame>>,
+    /// Separated streams by label.
+    pub audio: BTreeMap<Label, Vec<f32>>,
+    /// The run summary.
+    pub summary: Option<serde_json::Value>,
+}
+
+impl Output {
+    /// Reads whatever the folder holds, validating it against the scene's layout.
+    pub fn load(dir: &Path, layout: &Layout) -> Result<Self, SceneError> {
+        if !dir.is_dir() {
+            return Err(SceneError::new(dir, "is not a folder"));
+        }
+        let mut out = Output {
+            dir: dir.to_path_buf(),
+            ..Default::default()
+        };
+        let tracks_path = dir.join(files::TRACKS);
+        if tracks_path.exists() {
+            let mut lines = Vec::new();
+            let mut last = f64::NEG_INFINITY;
+            read_jsonl(&tracks_path, |line, l: TracksLine| {
+                let err =
+                    |f: String, m: String| SceneError::new(&tracks_path, m).at_line(line).field(f);
+                if !l.t.is_finite() || l.t < last {
+                    return Err(err(
+                        "t".into(),
+                        format!("time {} is not finite or goes backwards", l.t),
+                    ));
+                }
+                last = l.t;
+                for (i, tr) in l.tracks.iter().enumerate() {
+                    if !tr
+                        .position
+                        .iter()
+                        .chain(&tr.velocity)
+                        .all(|v| v.is_finite())
+                    {
+                        return Err(err(
+                            format!("tracks[{i}].position"),
+                            "must be finite".into(),
+                        ));
+                    }
+                }
+                lines.push(l);
+                Ok(())
+            })?;
+            out.tracks = Some(lines);
+        }
+        let meas_path = dir.join(files::MEASUREMENTS);
+        if meas_path.exists() {
+            out.measurements = Some(load_audio_measurements(&meas_path, layout)?);
+        }
+        let audio_dir = dir.join(files::AUDIO_DIR);
+        if audio_dir.is_dir() {
+            let entries = std::fs::read_dir(&audio_dir)
+                .map_err(|e| SceneError::new(&audio_dir, format!("cannot list: {e}")))?;
+            for entry in entries.flatten() {
+                let path = entry.path();
+                if path.extension().and_then(|e| e.to_str()) != Some("wav") {
+                    continue;
+                }
+                let stem = path
+                    .file_stem()
+                    .and_then(|s| s.to_str())
+                    .unwrap_or_default();
+                let label: Label = stem.parse().map_err(|e| {
+                    SceneError::new(&path, format!("file name is not a track label: {e}"))
+                })?;
+                let a = Audio::read(&path)?;
+                if a.channels != 1 {
+                    return Err(
+                        SceneError::new(&path, "separated audio must be mono").field("channels")
+                    );
+                }
+                out.audio.insert(label, a.samples);
+            }
+        }
+        let summary_path = dir.join(files::SUMMARY);
+        if summary_path.exists() {
+            let text = std::fs::read_to_string(&summary_path)
+                .map_err(|e| SceneError::new(&summary_path, format!("cannot read: {e}")))?;
+            out.summary = Some(parse_json(&summary_path, &text, None)?);
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,1 @@
+//! The room simulator: makes scenes with known truth (filled in by the simulator work).
