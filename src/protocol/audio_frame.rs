@@ -43,7 +43,9 @@ pub const AUDIO_IN_HEADER: usize = 24;
 pub const AUDIO_OUT_HEADER: usize = 32;
 
 /// Sample encoding of a binary audio frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum SampleEncoding {
     /// Signed 16-bit PCM, full scale 32768.

@@ -2,5 +2,7 @@
 //! applied to them before they reach a pipeline. Nothing here touches sockets.
 
 pub mod audio_frame;
+pub mod messages;
 
 pub use audio_frame::{AudioFrame, FrameError, LabelAudioFrame, SampleEncoding};
+pub use messages::{ClientMessage, ErrorBody, OutputSelection, ServerMessage, SessionEvent};

@@ -3,6 +3,7 @@
 //!
 //! Unknown fields are ignored (forward compatibility); missing required fields are errors.
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::label::Label;
@@ -11,9 +12,9 @@ use crate::label::Label;
 pub const SCENE_FORMAT: &str = "avsep-scene/1";
 
 /// `scene.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SceneFile {
-    /// Must be [`SCENE_FORMAT`].
+    /// Format and version tag; must be `"avsep-scene/1"`.
     pub format: String,
     /// Audio sample rate (Hz).
     pub sample_rate: u32,
@@ -47,7 +48,7 @@ fn default_speed_of_sound() -> f64 {
 }
 
 /// One microphone array in `scene.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ArrayFile {
     /// Array id.
     pub id: String,
@@ -59,7 +60,7 @@ pub struct ArrayFile {
 }
 
 /// One camera in `scene.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct CameraFile {
     /// Camera id.
     pub id: String,
@@ -86,7 +87,7 @@ pub struct CameraFile {
 }
 
 /// `region` in `scene.json`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RegionFile {
     /// Lower corner (m).
     pub min: [f64; 3],
@@ -95,7 +96,7 @@ pub struct RegionFile {
 }
 
 /// One line of `detections.jsonl`: one camera frame.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct DetectionLine {
     /// Frame time (s).
     pub t: f64,
@@ -106,7 +107,7 @@ pub struct DetectionLine {
 }
 
 /// A detected face box.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct BoxFile {
     /// Left edge (px).
     pub x: f64,
@@ -125,7 +126,7 @@ pub struct BoxFile {
 }
 
 /// One line of `audio_measurements.jsonl` or `measurements.jsonl`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct AudioMeasurementLine {
     /// Frame time (s).
     pub t: f64,
@@ -143,7 +144,7 @@ pub struct AudioMeasurementLine {
 }
 
 /// A direction of arrival (degrees).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct DoaFile {
     /// Azimuth (deg) in the x-y plane from +x towards +y.
     pub azimuth: f64,
@@ -156,14 +157,14 @@ pub struct DoaFile {
 }
 
 /// `truth/truth.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TruthFile {
     /// The true sources.
     pub sources: Vec<TruthSourceFile>,
 }
 
 /// One true source.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TruthSourceFile {
     /// Source id.
     pub id: String,
@@ -178,7 +179,7 @@ pub struct TruthSourceFile {
 }
 
 /// One line of `tracks.jsonl`: the tracker's estimate at time `t`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TracksLine {
     /// Time the estimate refers to (s).
     pub t: f64,
@@ -187,7 +188,7 @@ pub struct TracksLine {
 }
 
 /// One estimated track in `tracks.jsonl`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TrackFile {
     /// Identity, never reused.
     pub label: Label,

@@ -7,6 +7,7 @@ pub mod format;
 mod model;
 pub mod output;
 mod reader;
+pub mod schema;
 pub mod sim;
 mod wav;
 mod writer;
