@@ -22,6 +22,27 @@ pub enum AudioMeasurementSource {
     Both,
 }
 
+impl AudioMeasurementSource {
+    /// Whether the built-in localiser runs.
+    pub fn uses_localizer(self) -> bool {
+        !matches!(self, Self::Device)
+    }
+}
+
+/// Which of the localiser's candidates feed the tracker, per array.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum LocalizedMeasurements {
+    /// 3-D positions for linear arrays (as in the seed paper), directions for planar and
+    /// volumetric arrays, whose compact apertures resolve direction far better than range.
+    #[default]
+    Auto,
+    /// 3-D position candidates from stochastic region contraction.
+    Positions,
+    /// Directions of arrival from the geodesic-sphere search.
+    Directions,
+}
+
 /// Pipeline settings. Every field has a default; unknown fields are errors.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
@@ -35,6 +56,8 @@ pub struct PipelineConfig {
     pub seed: Option<u64>,
     /// Where audio measurements come from.
     pub audio_measurements: AudioMeasurementSource,
+    /// Which localiser candidates (positions or directions) the tracker uses.
+    pub localized_measurements: LocalizedMeasurements,
     /// Whether camera detections are used by the tracker.
     pub cameras: bool,
     /// Boxes with a detector score below this are ignored.
@@ -58,6 +81,7 @@ impl Default for PipelineConfig {
             camera_wait_s: 0.15,
             seed: None,
             audio_measurements: AudioMeasurementSource::Auto,
+            localized_measurements: LocalizedMeasurements::Auto,
             cameras: true,
             min_box_score: 0.0,
             max_gap_s: 2.0,

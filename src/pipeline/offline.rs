@@ -1,0 +1,230 @@
+//! The offline runner: feeds a scene folder through a pipeline in time order, exactly as a live
+//! client streaming it would, and writes the output folder.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::label::Label;
+use crate::scene::output::files;
+use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_json};
+
+use super::config::{ConfigError, PipelineConfig};
+use super::diarization::{Diarizer, to_rttm};
+use super::session::{Pipeline, PipelineStats};
+use super::PipelineEvent;
+
+/// Options of an offline run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OfflineOptions {
+    /// Steer the separator with the scene's true trajectories instead of the tracker.
+    pub oracle_tracks: bool,
+    /// Audio is pushed in blocks of this many sample frames (as a client would stream it).
+    pub block_samples: usize,
+}
+
+impl Default for OfflineOptions {
+    fn default() -> Self {
+        Self { oracle_tracks: false, block_samples: 1024 }
+    }
+}
+
+/// What went wrong in an offline run.
+#[derive(Debug, thiserror::Error)]
+pub enum ProcessError {
+    /// The configuration is invalid.
+    #[error("configuration: {0}")]
+    Config(#[from] ConfigError),
+    /// Reading or writing files failed.
+    #[error("{0}")]
+    Files(#[from] SceneError),
+    /// The scene lacks what the options need.
+    #[error("{0}")]
+    Scene(String),
+}
+
+/// Figures of an offline run, written to `summary.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunSummary {
+    /// Scene folder.
+    pub scene: String,
+    /// Input duration (s).
+    pub duration_s: f64,
+    /// Wall-clock processing time (s).
+    pub processing_s: f64,
+    /// Processing time over input duration (below 1 is faster than real time).
+    pub real_time_factor: f64,
+    /// Whether the tracks were the scene's truth.
+    pub oracle_tracks: bool,
+    /// Labels ever reported.
+    pub tracks: Vec<String>,
+    /// Number of speech segments in the diarization.
+    pub speech_segments: usize,
+    /// Warnings raised, by code.
+    pub warnings: BTreeMap<String, u64>,
+    /// Pipeline counters.
+    pub stats: PipelineStats,
+    /// Seed used.
+    pub seed: u64,
+    /// Settings used.
+    pub settings: PipelineConfig,
+}
+
+/// Default seed of offline runs when the configuration gives none.
+pub const DEFAULT_OFFLINE_SEED: u64 = 0x5eed;
+
+/// Everything an offline run writes, accumulated from the pipeline's events.
+struct OutputSink {
+    tracks: JsonlWriter,
+    measurements: JsonlWriter,
+    audio: BTreeMap<Label, Vec<f32>>,
+    frames: usize,
+    diarizer: Diarizer,
+    step_s: f64,
+    warnings: BTreeMap<String, u64>,
+    labels: Vec<Label>,
+}
+
+impl OutputSink {
+    fn handle(&mut self, events: Vec<PipelineEvent>) -> Result<(), SceneError> {
+        for e in events {
+            match e {
+                PipelineEvent::Measurements(line) => self.measurements.write(&line)?,
+                PipelineEvent::Tracks { line, .. } => {
+                    let speaking: Vec<(Label, f64)> = line.tracks.iter().map(|t| (t.label, t.speaking)).collect();
+                    let half = 0.5 * self.step_s;
+                    self.diarizer.push(line.t - half, line.t + half, &speaking);
+                    self.tracks.write(&line)?;
+                }
+                PipelineEvent::Audio { label, first_sample, samples } => {
+                    let buf = self.audio.entry(label).or_insert_with(|| vec![0.0; self.frames]);
+                    let start = first_sample as usize;
+                    if start < buf.len() {
+                        let n = samples.len().min(buf.len() - start);
+                        buf[start..start + n].copy_from_slice(&samples[..n]);
+                    }
+                }
+                PipelineEvent::TrackBorn { label, .. } => self.labels.push(label),
+                PipelineEvent::TrackEnded { .. } => {}
+                PipelineEvent::Warning { code, message } => {
+                    tracing::warn!(code, "{message}");
+                    *self.warnings.entry(code.to_string()).or_default() += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Runs the pipeline over `scene` and writes the output folder `out`. `progress` receives the
+/// fraction of the input processed.
+pub fn process_scene(
+    scene: &Scene,
+    cfg: PipelineConfig,
+    out: &Path,
+    opts: OfflineOptions,
+    progress: &dyn Fn(f64),
+) -> Result<RunSummary, ProcessError> {
+    let started = Instant::now();
+    let seed = cfg.seed.unwrap_or(DEFAULT_OFFLINE_SEED);
+    let mut pipeline = Pipeline::new(scene.layout.clone(), cfg.clone(), seed)?;
+    if opts.oracle_tracks {
+        let truth = scene.truth.clone().ok_or_else(|| {
+            ProcessError::Scene(format!("{}: --oracle-tracks needs a scene with truth", scene.dir.display()))
+        })?;
+        pipeline.use_oracle_tracks(truth);
+    }
+    std::fs::create_dir_all(out.join(files::AUDIO_DIR))
+        .map_err(|e| SceneError::new(out, format!("cannot create output folder: {e}")))?;
+    let frames = scene.audio.as_ref().map_or(0, Audio::frames);
+    let mut sink = OutputSink {
+        tracks: JsonlWriter::create(&out.join(files::TRACKS))?,
+        measurements: JsonlWriter::create(&out.join(files::MEASUREMENTS))?,
+        audio: BTreeMap::new(),
+        frames,
+        diarizer: Diarizer::new(0.5, 0.3, 0.5),
+        step_s: pipeline.clock().step_s(),
+        warnings: BTreeMap::new(),
+        labels: Vec::new(),
+    };
+
+    // Merge camera frames and device measurements into one time-ordered feed.
+    let mut feed: Vec<(f64, Feed)> = scene.detections.iter().map(|d| (d.t, Feed::Detection(d))).collect();
+    feed.extend(scene.audio_measurements.iter().map(|m| (m.t, Feed::Device(m))));
+    feed.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut next = 0;
+    let mut push_feed_until = |pipeline: &mut Pipeline, sink: &mut OutputSink, t_end: f64| -> Result<(), SceneError> {
+        while next < feed.len() && feed[next].0 < t_end {
+            let result = match &feed[next].1 {
+                Feed::Detection(d) => pipeline.push_detections((*d).clone()),
+                Feed::Device(m) => pipeline.push_device_measurements((*m).clone()),
+            };
+            match result {
+                Ok(events) => sink.handle(events)?,
+                Err(e) => sink.handle(vec![PipelineEvent::Warning { code: e.code, message: e.to_string() }])?,
+            }
+            next += 1;
+        }
+        Ok(())
+    };
+
+    match &scene.audio {
+        Some(audio) => {
+            let sr = audio.sample_rate as f64;
+            let block = opts.block_samples.max(1);
+            let mut start = 0;
+            while start < frames {
+                let end = (start + block).min(frames);
+                push_feed_until(&mut pipeline, &mut sink, end as f64 / sr)?;
+                let slice = &audio.samples[start * audio.channels..end * audio.channels];
+                match pipeline.push_audio(start as u64, audio.channels, slice) {
+                    Ok(events) => sink.handle(events)?,
+                    Err(e) => sink.handle(vec![PipelineEvent::Warning { code: e.code, message: e.to_string() }])?,
+                }
+                start = end;
+                progress(start as f64 / frames as f64);
+            }
+            push_feed_until(&mut pipeline, &mut sink, f64::INFINITY)?;
+        }
+        None => push_feed_until(&mut pipeline, &mut sink, f64::INFINITY)?,
+    }
+    sink.handle(pipeline.finish())?;
+    progress(1.0);
+
+    let OutputSink { tracks, measurements, audio, diarizer, warnings, labels, .. } = sink;
+    tracks.finish()?;
+    measurements.finish()?;
+    let sr = scene.layout.sample_rate;
+    for (label, samples) in audio {
+        Audio::mono(sr, samples).write(&out.join(files::AUDIO_DIR).join(format!("{label}.wav")), SampleFormat::F32)?;
+    }
+    let segments = diarizer.finish();
+    let file_id = scene.dir.file_name().and_then(|n| n.to_str()).unwrap_or("scene");
+    std::fs::write(out.join(files::DIARIZATION), to_rttm(file_id, &segments))
+        .map_err(|e| SceneError::new(&out.join(files::DIARIZATION), format!("cannot write: {e}")))?;
+
+    let duration_s = scene.duration();
+    let processing_s = started.elapsed().as_secs_f64();
+    let summary = RunSummary {
+        scene: scene.dir.display().to_string(),
+        duration_s,
+        processing_s,
+        real_time_factor: if duration_s > 0.0 { processing_s / duration_s } else { 0.0 },
+        oracle_tracks: opts.oracle_tracks,
+        tracks: labels.iter().map(ToString::to_string).collect(),
+        speech_segments: segments.len(),
+        warnings,
+        stats: pipeline.stats(),
+        seed,
+        settings: cfg,
+    };
+    write_json(&out.join(files::SUMMARY), &summary)?;
+    Ok(summary)
+}
+
+enum Feed<'a> {
+    Detection(&'a crate::scene::DetectionFrame),
+    Device(&'a crate::scene::AudioMeasurementFrame),
+}

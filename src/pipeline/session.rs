@@ -1,0 +1,472 @@
+//! One session's pipeline: audio and detections in session time go in; measurements, tracks,
+//! separated audio and events come out.
+//!
+//! The pipeline is a plain struct driven by its caller (the offline runner or a server worker):
+//! `push_*` accepts input (validated, never panicking), `poll` runs every tracker step whose data
+//! is complete, `finish` flushes everything at the end of the input. It has no clock of its own:
+//! the camera wait is measured in audio time, so a live session fed in time order produces exactly
+//! what the offline run produces.
+
+use std::collections::BTreeSet;
+
+use crate::dsp::{MultiSpectrum, Stft};
+use crate::geometry::Layout;
+use crate::label::Label;
+use crate::localize::Localizer;
+use crate::scene::format::TracksLine;
+use crate::scene::{AudioMeasurementFrame, DetectionFrame, Truth};
+use crate::track::{Scan, SensorKey, StepInput, Tracker, build_tracker, sensors_from_layout};
+
+use super::config::{ConfigError, PipelineConfig};
+use super::input::{self, InputError};
+use super::sensor_queue::SensorQueue;
+use super::separation::SeparationDriver;
+use super::stages::{self, Estimate, SensorRoutes, Timeline};
+use super::{AudioHistory, PipelineEvent, StepClock};
+
+/// Counters of a pipeline's life, for summaries and metrics.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct PipelineStats {
+    /// Tracker steps run.
+    pub steps: u64,
+    /// Audio sample frames accepted.
+    pub samples_in: u64,
+    /// Audio sample frames of silence inserted to bridge gaps.
+    pub samples_bridged: u64,
+    /// Camera frames accepted.
+    pub detection_frames_in: u64,
+    /// Device measurement frames accepted.
+    pub device_frames_in: u64,
+    /// Messages refused (invalid or late).
+    pub rejected: u64,
+    /// Camera frames that arrived after their step had run.
+    pub late_frames: u64,
+    /// Steps in which at least one camera was absent.
+    pub steps_with_absent_camera: u64,
+    /// Distinct labels ever reported.
+    pub labels: u64,
+}
+
+/// Where track estimates come from.
+enum TrackSource {
+    /// The configured tracker, with the routes from inputs to its sensors.
+    Tracker { tracker: Box<dyn Tracker>, routes: SensorRoutes },
+    /// The scene's true trajectories (for measuring separation alone).
+    Oracle(Truth),
+}
+
+/// One session's processing chain.
+pub struct Pipeline {
+    layout: Layout,
+    cfg: PipelineConfig,
+    clock: StepClock,
+    seed: u64,
+    audio: Option<AudioHistory>,
+    localizer: Option<Localizer>,
+    loc_stft: Stft,
+    loc_spectra: MultiSpectrum,
+    frame_buf: Vec<f64>,
+    cameras: Vec<SensorQueue<DetectionFrame>>,
+    devices: Vec<SensorQueue<AudioMeasurementFrame>>,
+    next_step: u64,
+    source: TrackSource,
+    timeline: Timeline,
+    live: BTreeSet<Label>,
+    seen: BTreeSet<Label>,
+    separation: Option<SeparationDriver>,
+    stats: PipelineStats,
+    finishing: bool,
+    /// Where the (zero-padded) input ends once finishing; steps past it are not run.
+    end_sample: Option<u64>,
+}
+
+impl Pipeline {
+    /// Builds the pipeline of a session with the given layout and settings.
+    pub fn new(layout: Layout, cfg: PipelineConfig, seed: u64) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        let clock = StepClock::new(layout.sample_rate, cfg.step_s);
+        let has_audio = layout.channel_count() > 0;
+        let localizer = if has_audio && cfg.audio_measurements.uses_localizer() {
+            Some(
+                Localizer::new(&layout, &cfg.localize, seed)
+                    .map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?,
+            )
+        } else {
+            None
+        };
+        let loc_frame = localizer.as_ref().map_or(cfg.localize.frame, Localizer::frame_size);
+        let separation = if has_audio && cfg.separation {
+            Some(SeparationDriver::new(&layout, &cfg.separate)?)
+        } else {
+            None
+        };
+        let sep_frame = separation.as_ref().map_or(0, |s| s.frame_len());
+        let history = loc_frame.max(sep_frame) + 4 * clock.step_samples as usize;
+        let keyed = sensors_from_layout(&layout, &cfg.track);
+        let routes = SensorRoutes::new(&layout, &cfg, keyed.iter().map(|(k, _)| *k).collect());
+        let tracker = build_tracker(&cfg.track, keyed.into_iter().map(|(_, m)| m).collect(), layout.region, seed)
+            .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+        Ok(Self {
+            clock,
+            seed,
+            audio: has_audio.then(|| AudioHistory::new(layout.channel_count(), history)),
+            localizer,
+            loc_stft: Stft::new(loc_frame),
+            loc_spectra: MultiSpectrum::zeros(layout.channel_count(), loc_frame / 2 + 1),
+            frame_buf: vec![0.0; loc_frame.max(sep_frame)],
+            cameras: (0..layout.cameras.len()).map(|_| SensorQueue::default()).collect(),
+            devices: (0..layout.arrays.len()).map(|_| SensorQueue::default()).collect(),
+            next_step: 0,
+            source: TrackSource::Tracker { tracker, routes },
+            timeline: Timeline::default(),
+            live: BTreeSet::new(),
+            seen: BTreeSet::new(),
+            separation,
+            stats: PipelineStats::default(),
+            finishing: false,
+            end_sample: None,
+            layout,
+            cfg,
+        })
+    }
+
+    /// Replaces the tracker by the scene's true trajectories (labels `0.i` for source i).
+    pub fn use_oracle_tracks(&mut self, truth: Truth) {
+        self.source = TrackSource::Oracle(truth);
+    }
+
+    /// The session's layout.
+    pub fn layout(&self) -> &Layout {
+        &self.layout
+    }
+
+    /// The settings in force.
+    pub fn config(&self) -> &PipelineConfig {
+        &self.cfg
+    }
+
+    /// The step clock.
+    pub fn clock(&self) -> StepClock {
+        self.clock
+    }
+
+    /// The seed of the session's random numbers.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> PipelineStats {
+        self.stats
+    }
+
+    /// Index of the next audio sample frame expected.
+    pub fn next_sample(&self) -> u64 {
+        self.audio.as_ref().map_or(0, AudioHistory::end)
+    }
+
+    /// Labels currently reported.
+    pub fn live_labels(&self) -> Vec<Label> {
+        self.live.iter().copied().collect()
+    }
+
+    /// Separated-audio latency: samples between the end of the input a step needs and the last
+    /// separated sample it releases (frame minus hop of the separator's STFT).
+    pub fn audio_delay_samples(&self) -> u64 {
+        self.separation.as_ref().map_or(0, |s| s.delay_samples())
+    }
+
+    fn reject<T>(&mut self, e: InputError) -> Result<T, InputError> {
+        self.stats.rejected += 1;
+        Err(e)
+    }
+
+    /// Accepts a block of interleaved audio starting at sample frame `first_sample`.
+    ///
+    /// A block that starts after the expected sample is preceded by silence (up to `max_gap_s`);
+    /// one that starts before it (overlap or time going backwards) is refused.
+    pub fn push_audio(
+        &mut self,
+        first_sample: u64,
+        channels: usize,
+        samples: &[f32],
+    ) -> Result<Vec<PipelineEvent>, InputError> {
+        if let Err(e) = input::check_audio(&self.layout, channels, samples) {
+            return self.reject(e);
+        }
+        if self.finishing {
+            return self.reject(InputError::new("finished", "first_sample", "the session's input has ended"));
+        }
+        let max_gap = (self.cfg.max_gap_s * self.clock.sample_rate as f64) as u64;
+        let sr = self.clock.sample_rate as f64;
+        let Some(audio) = self.audio.as_mut() else {
+            return self.reject(InputError::new("no_audio", "channels", "this session has no audio channels"));
+        };
+        let expected = audio.end();
+        let mut events = Vec::new();
+        if first_sample < expected {
+            let msg = format!(
+                "block starts at sample {first_sample} but sample {expected} is next (time goes backwards or overlaps)"
+            );
+            return self.reject(InputError::new("time_backwards", "first_sample", msg));
+        }
+        if first_sample > expected {
+            let gap = first_sample - expected;
+            if gap > max_gap {
+                let msg = format!(
+                    "gap of {:.3} s before this block exceeds max_gap_s; send from sample {expected}",
+                    gap as f64 / sr
+                );
+                return self.reject(InputError::new("gap_too_long", "first_sample", msg));
+            }
+            audio.append_silence(gap as usize);
+            self.stats.samples_bridged += gap;
+            events.push(PipelineEvent::Warning {
+                code: "gap_bridged",
+                message: format!("{gap} missing samples before sample {first_sample} replaced by silence"),
+            });
+        }
+        audio.append_interleaved(samples);
+        self.stats.samples_in += (samples.len() / channels) as u64;
+        events.extend(self.poll());
+        Ok(events)
+    }
+
+    /// Accepts one camera frame. Frames whose step already ran are refused as late.
+    pub fn push_detections(&mut self, mut frame: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError> {
+        let last = self.cameras.get(frame.camera).map_or(f64::NEG_INFINITY, SensorQueue::last_time);
+        if let Err(e) = input::check_detections(&self.layout, &frame, last) {
+            return self.reject(e);
+        }
+        let step_start = self.clock.step_bounds(self.next_step).0;
+        if frame.t < step_start {
+            self.stats.late_frames += 1;
+            let msg = format!("frame at {} s arrived after its tracker step ran (now at {step_start} s)", frame.t);
+            return self.reject(InputError::new("late", "t", msg));
+        }
+        let min_score = self.cfg.min_box_score;
+        frame.boxes.retain(|b| b.score.is_none_or(|s| s >= min_score));
+        self.stats.detection_frames_in += 1;
+        self.cameras[frame.camera].push(frame);
+        Ok(self.poll())
+    }
+
+    /// Accepts one frame of directions/positions from a device that localises itself.
+    pub fn push_device_measurements(
+        &mut self,
+        frame: AudioMeasurementFrame,
+    ) -> Result<Vec<PipelineEvent>, InputError> {
+        let last = self.devices.get(frame.array).map_or(f64::NEG_INFINITY, SensorQueue::last_time);
+        if let Err(e) = input::check_device_measurements(&self.layout, &frame, last) {
+            return self.reject(e);
+        }
+        let step_start = self.clock.step_bounds(self.next_step).0;
+        if frame.t < step_start {
+            return self.reject(InputError::new("late", "t", "measurement arrived after its tracker step ran"));
+        }
+        self.stats.device_frames_in += 1;
+        self.devices[frame.array].push(frame);
+        Ok(self.poll())
+    }
+
+    /// Whether the data of step `k` is complete (or waited for long enough).
+    fn step_ready(&self, k: u64) -> bool {
+        let (_, t1) = self.clock.step_bounds(k);
+        if let Some(end) = self.end_sample
+            && self.clock.step_start_sample(k) >= end
+        {
+            return false;
+        }
+        let mut waited: Vec<f64> = Vec::new();
+        if self.cfg.cameras {
+            waited.extend(self.cameras.iter().map(SensorQueue::last_time));
+        }
+        waited.extend(self.devices.iter().filter(|d| d.has_reported()).map(SensorQueue::last_time));
+        let horizon = match &self.audio {
+            Some(a) => self.clock.time_of(a.end()),
+            None => waited.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        };
+        if horizon < t1 {
+            return false;
+        }
+        self.finishing || horizon >= t1 + self.cfg.camera_wait_s || waited.iter().all(|&t| t >= t1)
+    }
+
+    /// Runs every step whose data is complete; returns what they produced.
+    pub fn poll(&mut self) -> Vec<PipelineEvent> {
+        let mut events = Vec::new();
+        while self.step_ready(self.next_step) {
+            self.run_step(&mut events);
+        }
+        events
+    }
+
+    /// Ends the input: pads the audio to whole steps and frames, runs the remaining steps and
+    /// flushes the separated streams.
+    pub fn finish(&mut self) -> Vec<PipelineEvent> {
+        self.finishing = true;
+        let mut events = Vec::new();
+        let end = match &self.audio {
+            Some(a) => a.end(),
+            None => {
+                let t = self.cameras.iter().chain(self.devices.iter()).map(SensorQueue::last_time);
+                let t_max = t.fold(0.0, f64::max);
+                (t_max * self.clock.sample_rate as f64).ceil() as u64 + 1
+            }
+        };
+        self.end_sample = Some(end);
+        let steps = end.div_ceil(self.clock.step_samples);
+        if let Some(audio) = self.audio.as_mut() {
+            // Whole last step plus one separator frame of silence so every input sample is output.
+            let pad = steps * self.clock.step_samples - end + self.frame_buf.len() as u64;
+            audio.append_silence(pad as usize);
+        }
+        while self.next_step < steps && self.step_ready(self.next_step) {
+            self.run_step(&mut events);
+        }
+        if let Some(sep) = self.separation.as_mut()
+            && let Some(audio) = &self.audio
+        {
+            let until = audio.end();
+            let timeline = &self.timeline;
+            events.extend(sep.run_until(audio, until, &self.clock, |t| timeline.targets_at(t)));
+            events.extend(sep.flush());
+        }
+        for label in std::mem::take(&mut self.live) {
+            let t = self.timeline.last_time().unwrap_or(0.0);
+            events.push(PipelineEvent::TrackEnded { t, label });
+        }
+        events
+    }
+
+    fn run_step(&mut self, events: &mut Vec<PipelineEvent>) {
+        let k = self.next_step;
+        self.next_step += 1;
+        self.stats.steps += 1;
+        let (_, t1) = self.clock.step_bounds(k);
+        let t_est = self.clock.estimate_time(k);
+        let end_sample = self.clock.step_end_sample(k);
+
+        // Audio measurements: the localiser on the frame ending at the step's end.
+        let observations = self.localize(end_sample);
+        for obs in &observations {
+            events.push(PipelineEvent::Measurements(stages::measurement_line(
+                &self.layout,
+                obs,
+                t1 - self.loc_stft.frame() as f64 / self.clock.sample_rate as f64,
+            )));
+        }
+        let activity = observations.iter().map(|o| o.activity).fold(0.0, f64::max);
+
+        // Camera frames and device measurements of this step.
+        let mut camera_frames: Vec<(usize, DetectionFrame)> = Vec::new();
+        for (j, q) in self.cameras.iter_mut().enumerate() {
+            let mut frames = q.take_before(t1);
+            // One frame per camera and step: the latest (the tracker models one look per step).
+            if let Some(f) = frames.pop() {
+                camera_frames.push((j, f));
+            }
+        }
+        if self.cfg.cameras && camera_frames.len() < self.cameras.len() {
+            self.stats.steps_with_absent_camera += 1;
+        }
+        let mut device_frames: Vec<AudioMeasurementFrame> = Vec::new();
+        for q in &mut self.devices {
+            device_frames.extend(q.take_before(t1));
+        }
+
+        let estimates = match &mut self.source {
+            TrackSource::Tracker { tracker, routes } => {
+                let mut scans: Vec<Scan> = Vec::new();
+                routes.localized(&observations, &mut scans);
+                routes.devices(&device_frames, &mut scans);
+                if self.cfg.cameras {
+                    routes.cameras(&camera_frames, &mut scans);
+                }
+                let out = tracker.step(&StepInput { k, t: t_est, scans });
+                out.into_iter().map(Estimate::from).collect()
+            }
+            TrackSource::Oracle(truth) => stages::oracle_estimates(truth, t_est),
+        };
+        self.timeline.push(t_est, estimates.clone(), activity);
+        self.emit_tracks(k, t_est, &estimates, events);
+
+        // Separation of every STFT frame whose window ends within this step.
+        if let (Some(sep), Some(audio)) = (self.separation.as_mut(), self.audio.as_ref()) {
+            let timeline = &self.timeline;
+            let oracle = match &self.source {
+                TrackSource::Oracle(truth) => Some(truth),
+                TrackSource::Tracker { .. } => None,
+            };
+            events.extend(sep.run_until(audio, end_sample, &self.clock, |t| match oracle {
+                Some(truth) => stages::oracle_targets(truth, t, activity),
+                None => timeline.targets_at(t),
+            }));
+        }
+    }
+
+    fn localize(&mut self, end_sample: u64) -> Vec<crate::localize::ArrayObservation> {
+        let (Some(localizer), Some(audio)) = (self.localizer.as_mut(), self.audio.as_ref()) else {
+            return Vec::new();
+        };
+        let n = self.loc_stft.frame();
+        let from = end_sample as i64 - n as i64;
+        for ch in 0..audio.channels() {
+            if audio.read(ch, from, &mut self.frame_buf[..n]).is_err() {
+                return Vec::new();
+            }
+            self.loc_stft.forward(&self.frame_buf[..n], self.loc_spectra.channel_mut(ch));
+        }
+        localizer.process(&self.loc_spectra)
+    }
+
+    fn emit_tracks(&mut self, k: u64, t: f64, estimates: &[Estimate], events: &mut Vec<PipelineEvent>) {
+        let now: BTreeSet<Label> = estimates.iter().map(|e| e.label).collect();
+        for &label in now.difference(&self.live) {
+            if self.seen.insert(label) {
+                self.stats.labels += 1;
+            }
+            events.push(PipelineEvent::TrackBorn { t, label });
+        }
+        let prev_t = self.timeline.previous_time().unwrap_or(t);
+        for &label in self.live.difference(&now) {
+            events.push(PipelineEvent::TrackEnded { t: prev_t, label });
+        }
+        self.live = now;
+        let line = TracksLine { t, tracks: estimates.iter().map(Estimate::to_file).collect() };
+        events.push(PipelineEvent::Tracks { step: k, line });
+    }
+
+    /// Replaces the layout (live recalibration): stages keep their tracks and adaptive state.
+    pub fn set_layout(&mut self, layout: Layout) -> Result<(), ConfigError> {
+        if layout.channel_count() != self.layout.channel_count()
+            || layout.cameras.len() != self.layout.cameras.len()
+            || layout.arrays.len() != self.layout.arrays.len()
+        {
+            return Err(ConfigError::new(
+                "layout",
+                "recalibration may move microphones and cameras but not add or remove them",
+            ));
+        }
+        if let Some(l) = self.localizer.as_mut() {
+            l.set_layout(&layout).map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?;
+        }
+        if let Some(s) = self.separation.as_mut() {
+            s.set_layout(&layout)?;
+        }
+        if let TrackSource::Tracker { tracker, .. } = &mut self.source {
+            let models = sensors_from_layout(&layout, &self.cfg.track).into_iter().map(|(_, m)| m).collect();
+            tracker.set_sensors(models).map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+        }
+        self.layout = layout;
+        Ok(())
+    }
+
+    /// Keys of the tracker's sensors, in sensor-index order (for diagnostics).
+    pub fn sensor_keys(&self) -> Vec<SensorKey> {
+        match &self.source {
+            TrackSource::Tracker { routes, .. } => routes.keys().to_vec(),
+            TrackSource::Oracle(_) => Vec::new(),
+        }
+    }
+}

@@ -1,0 +1,284 @@
+//! Conversions between the stages' own types: localiser output to measurement lines and tracker
+//! scans, tracker output to estimates, estimates to separator targets (interpolated in time).
+
+use std::collections::BTreeMap;
+
+use crate::geometry::{ArrayShape, Layout, Vec3, deg};
+use crate::label::Label;
+use crate::localize::ArrayObservation;
+use crate::scene::format::{AudioMeasurementLine, DoaFile, TrackFile};
+use crate::scene::{AudioMeasurementFrame, DetectionFrame, Truth};
+use crate::separate::Target;
+use crate::track::{Measurement, Scan, SensorKey, TrackEstimate};
+
+use super::config::{AudioMeasurementSource, LocalizedMeasurements, PipelineConfig};
+
+/// A track estimate as the pipeline passes it on (from the tracker or from the truth).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimate {
+    /// Identity.
+    pub label: Label,
+    /// Position (m).
+    pub position: Vec3,
+    /// Velocity (m/s).
+    pub velocity: Vec3,
+    /// Existence probability.
+    pub existence: f64,
+    /// Speaking probability.
+    pub speaking: f64,
+    /// Position covariance (m^2), when known.
+    pub covariance: Option<[[f64; 3]; 3]>,
+}
+
+impl From<TrackEstimate> for Estimate {
+    fn from(e: TrackEstimate) -> Self {
+        let c = &e.covariance;
+        Self {
+            label: e.label,
+            position: e.position,
+            velocity: e.velocity,
+            existence: e.existence,
+            speaking: e.speaking,
+            covariance: Some(std::array::from_fn(|r| std::array::from_fn(|col| c[(r, col)]))),
+        }
+    }
+}
+
+impl Estimate {
+    /// The `tracks.jsonl` form.
+    pub fn to_file(&self) -> TrackFile {
+        TrackFile {
+            label: self.label,
+            position: self.position.into(),
+            velocity: self.velocity.into(),
+            existence: self.existence,
+            speaking: self.speaking,
+            covariance: self.covariance,
+        }
+    }
+
+    /// Largest position standard deviation (m), 0 when unknown.
+    fn position_std(&self) -> f64 {
+        self.covariance.map_or(0.0, |c| c[0][0].max(c[1][1]).max(c[2][2]).max(0.0).sqrt())
+    }
+}
+
+/// A track whose position is this uncertain (m) is steered by direction only.
+const DIRECTION_ONLY_STD_M: f64 = 1.0;
+
+/// The last two steps' estimates, to give the separator positions at any frame time.
+#[derive(Debug, Clone, Default)]
+pub struct Timeline {
+    prev: Option<(f64, Vec<Estimate>)>,
+    cur: Option<(f64, Vec<Estimate>, f64)>,
+}
+
+impl Timeline {
+    /// Records a step's estimates at time `t` with the step's voice activity.
+    pub fn push(&mut self, t: f64, estimates: Vec<Estimate>, activity: f64) {
+        self.prev = self.cur.take().map(|(t, e, _)| (t, e));
+        self.cur = Some((t, estimates, activity));
+    }
+
+    /// Time of the latest step.
+    pub fn last_time(&self) -> Option<f64> {
+        self.cur.as_ref().map(|c| c.0)
+    }
+
+    /// Time of the step before the latest.
+    pub fn previous_time(&self) -> Option<f64> {
+        self.prev.as_ref().map(|p| p.0)
+    }
+
+    /// Separator targets at time `t`: the latest step's labels, positions interpolated between
+    /// the last two steps (extrapolated along the velocity for at most one step past the latest).
+    pub fn targets_at(&self, t: f64) -> Vec<Target> {
+        let Some((t1, cur, activity)) = &self.cur else { return Vec::new() };
+        let prev: BTreeMap<Label, &Estimate> = match &self.prev {
+            Some((_, p)) => p.iter().map(|e| (e.label, e)).collect(),
+            None => BTreeMap::new(),
+        };
+        let t0 = self.prev.as_ref().map(|p| p.0);
+        cur.iter()
+            .map(|e| {
+                let position = match (t0, prev.get(&e.label)) {
+                    (Some(t0), Some(p)) if t < *t1 && *t1 > t0 => {
+                        let a = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+                        p.position + (e.position - p.position) * a
+                    }
+                    _ => {
+                        let ahead = (t - t1).clamp(0.0, t1 - t0.unwrap_or(*t1 - 0.128));
+                        e.position + e.velocity * ahead
+                    }
+                };
+                Target {
+                    label: e.label,
+                    position,
+                    direction_only: e.position_std() > DIRECTION_ONLY_STD_M,
+                    speaking: e.speaking,
+                    activity: *activity,
+                }
+            })
+            .collect()
+    }
+}
+
+/// The measurement line of one localiser observation (degrees, as in the scene format).
+pub fn measurement_line(layout: &Layout, obs: &ArrayObservation, t: f64) -> AudioMeasurementLine {
+    AudioMeasurementLine {
+        t: t.max(0.0),
+        array: layout.arrays[obs.array].id.clone(),
+        doas: obs
+            .doas
+            .iter()
+            .map(|d| DoaFile { azimuth: deg(d.azimuth), elevation: Some(deg(d.elevation)), energy: Some(d.power) })
+            .collect(),
+        points: obs.points.iter().map(|p| p.position.into()).collect(),
+        activity: Some(obs.activity),
+    }
+}
+
+/// Which tracker sensor each input feeds.
+#[derive(Debug, Clone)]
+pub struct SensorRoutes {
+    keys: Vec<SensorKey>,
+    positions: Vec<Option<usize>>,
+    directions: Vec<Option<usize>>,
+    cameras: Vec<Option<usize>>,
+    /// Per array: whether the localiser's positions (true) or directions (false) are used.
+    localized_positions: Vec<bool>,
+    source: AudioMeasurementSource,
+    device_seen: Vec<bool>,
+}
+
+impl SensorRoutes {
+    /// Routes for the tracker's sensors `keys` (in sensor-index order).
+    pub fn new(layout: &Layout, cfg: &PipelineConfig, keys: Vec<SensorKey>) -> Self {
+        let find = |want: SensorKey| keys.iter().position(|k| *k == want);
+        let n = layout.arrays.len();
+        Self {
+            positions: (0..n).map(|i| find(SensorKey::ArrayPositions(i))).collect(),
+            directions: (0..n).map(|i| find(SensorKey::ArrayDirections(i))).collect(),
+            cameras: (0..layout.cameras.len()).map(|j| find(SensorKey::Camera(j))).collect(),
+            localized_positions: layout
+                .arrays
+                .iter()
+                .map(|a| match cfg.localized_measurements {
+                    LocalizedMeasurements::Positions => true,
+                    LocalizedMeasurements::Directions => false,
+                    LocalizedMeasurements::Auto => matches!(a.shape(), ArrayShape::Linear { .. }),
+                })
+                .collect(),
+            source: cfg.audio_measurements,
+            device_seen: vec![false; n],
+            keys,
+        }
+    }
+
+    /// The tracker's sensor keys in index order.
+    pub fn keys(&self) -> &[SensorKey] {
+        &self.keys
+    }
+
+    /// Scans from the localiser's observations.
+    pub fn localized(&self, observations: &[ArrayObservation], scans: &mut Vec<Scan>) {
+        for obs in observations {
+            let a = obs.array;
+            if self.source == AudioMeasurementSource::Device
+                || (self.source == AudioMeasurementSource::Auto && self.device_seen.get(a).copied().unwrap_or(false))
+            {
+                continue;
+            }
+            let (sensor, measurements) = if self.localized_positions[a] {
+                (self.positions[a], obs.points.iter().map(|p| Measurement::Position(p.position)).collect())
+            } else {
+                let m = obs
+                    .doas
+                    .iter()
+                    .map(|d| Measurement::Direction { azimuth: d.azimuth, elevation: Some(d.elevation) })
+                    .collect();
+                (self.directions[a], m)
+            };
+            if let Some(sensor) = sensor {
+                scans.push(Scan { sensor, measurements, activity: Some(obs.activity) });
+            }
+        }
+    }
+
+    /// Scans from device-side measurements (the latest frame of each array in the step).
+    pub fn devices(&mut self, frames: &[AudioMeasurementFrame], scans: &mut Vec<Scan>) {
+        if self.source == AudioMeasurementSource::Localize {
+            return;
+        }
+        let mut latest: BTreeMap<usize, &AudioMeasurementFrame> = BTreeMap::new();
+        for f in frames {
+            latest.insert(f.array, f);
+        }
+        for (a, f) in latest {
+            self.device_seen[a] = true;
+            if !f.doas.is_empty()
+                && let Some(sensor) = self.directions[a]
+            {
+                let measurements = f
+                    .doas
+                    .iter()
+                    .map(|d| Measurement::Direction { azimuth: d.azimuth, elevation: d.elevation })
+                    .collect();
+                scans.push(Scan { sensor, measurements, activity: f.activity });
+            }
+            if !f.points.is_empty()
+                && let Some(sensor) = self.positions[a]
+            {
+                let measurements = f.points.iter().map(|p| Measurement::Position(*p)).collect();
+                scans.push(Scan { sensor, measurements, activity: f.activity });
+            }
+        }
+    }
+
+    /// Scans from camera frames (one frame per camera).
+    pub fn cameras(&self, frames: &[(usize, DetectionFrame)], scans: &mut Vec<Scan>) {
+        for (j, f) in frames {
+            if let Some(sensor) = self.cameras.get(*j).copied().flatten() {
+                let measurements = f.boxes.iter().map(|b| Measurement::Pixel(b.measurement_point())).collect();
+                scans.push(Scan { sensor, measurements, activity: None });
+            }
+        }
+    }
+}
+
+/// The label the oracle gives to true source `i`.
+pub fn oracle_label(i: usize) -> Label {
+    Label::new(0, i as u32)
+}
+
+/// True sources present at `t` as estimates (for `--oracle-tracks`).
+pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
+    truth
+        .sources
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| {
+            let p = s.position_at(t)?;
+            let h = 0.05;
+            let a = s.position_at(t - h).unwrap_or(p);
+            let b = s.position_at(t + h).unwrap_or(p);
+            let span = if s.exists_at(t - h) && s.exists_at(t + h) { 2.0 * h } else { h };
+            Some(Estimate {
+                label: oracle_label(i),
+                position: p,
+                velocity: (b - a) / span,
+                existence: 1.0,
+                speaking: if s.is_active(t) { 1.0 } else { 0.0 },
+                covariance: None,
+            })
+        })
+        .collect()
+}
+
+/// True sources present at `t` as separator targets.
+pub fn oracle_targets(truth: &Truth, t: f64, activity: f64) -> Vec<Target> {
+    oracle_estimates(truth, t)
+        .into_iter()
+        .map(|e| Target { label: e.label, position: e.position, direction_only: false, speaking: e.speaking, activity })
+        .collect()
+}
