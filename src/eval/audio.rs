@@ -357,7 +357,8 @@ mod tests {
         let a = source("a", noise(n, 1), vec![(0.0, 4.0)]);
         // b speaks from 1 s to 3 s and is silent otherwise.
         let mut nb = noise(n, 2);
-        nb[..1000].iter_mut().chain(nb[3000..].iter_mut()).for_each(|v| *v = 0.0);
+        nb[..1000].fill(0.0);
+        nb[3000..].fill(0.0);
         let b = source("b", nb, vec![(1.0, 3.0)]);
         let sa = a.signal.clone().unwrap();
         let sb = b.signal.clone().unwrap();
