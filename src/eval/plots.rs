@@ -123,6 +123,7 @@ fn trajectories(scene: &Scene, tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>) -> Re
             )
         }
     };
+    let (xs, ys) = equal_aspect(xs, ys);
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
@@ -143,11 +144,16 @@ fn trajectories(scene: &Scene, tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>) -> Re
         for (i, s) in truth.iter().enumerate() {
             let c = TRUTH[i % TRUTH.len()];
             let pts: Vec<(f64, f64)> = s.trajectory.iter().map(|(_, p)| (p.x, p.y)).collect();
+            // A hollow circle marks where the source appears (all of a static source).
+            let start = pts.first().copied();
             chart
                 .draw_series(DashedLineSeries::new(pts, 6, 4, c.stroke_width(2)))
                 .map_err(&err)?
                 .label(format!("truth {}", s.id))
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c));
+            chart
+                .draw_series(start.map(|p| Circle::new(p, 6, c.stroke_width(2))))
+                .map_err(&err)?;
         }
         for (i, (label, pts)) in tracks.iter().enumerate() {
             let c = label_colour(i);
@@ -178,6 +184,7 @@ fn trajectories(scene: &Scene, tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>) -> Re
             .legend(|(x, y)| Cross::new((x + 10, y), 6, BLACK.stroke_width(2)));
         chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .draw()
@@ -185,6 +192,20 @@ fn trajectories(scene: &Scene, tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>) -> Re
         root.present().map_err(&err)?;
     }
     Ok(svg)
+}
+
+/// Widens the shorter of two ranges so that a metre is as long on both axes of the plot area.
+fn equal_aspect(xs: Range<f64>, ys: Range<f64>) -> (Range<f64>, Range<f64>) {
+    // Plot area left by the caption, margins and label areas of the trajectory chart.
+    let (w, h) = (f64::from(SIZE.0) - 80.0, f64::from(SIZE.1) - 110.0);
+    let (dx, dy) = (xs.end - xs.start, ys.end - ys.start);
+    if dx / dy > w / h {
+        let pad = 0.5 * (dx * h / w - dy);
+        (xs, ys.start - pad..ys.end + pad)
+    } else {
+        let pad = 0.5 * (dy * w / h - dx);
+        (xs.start - pad..xs.end + pad, ys)
+    }
 }
 
 /// Splits a series of angles (deg) where it wraps around +-180 so lines do not cross the plot.
@@ -306,6 +327,16 @@ fn ospa2(series: &[(f64, f64)], cutoff: f64, duration: f64) -> Result<String, Ev
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn equal_aspect_widens_the_short_side() {
+        let (xs, ys) = equal_aspect(0.0..1.0, 0.0..10.0);
+        assert_eq!(ys, 0.0..10.0);
+        let ratio = (xs.end - xs.start) / (ys.end - ys.start);
+        let want = (f64::from(SIZE.0) - 80.0) / (f64::from(SIZE.1) - 110.0);
+        assert!((ratio - want).abs() < 1e-12);
+        assert!((xs.start + xs.end - 1.0).abs() < 1e-12);
+    }
 
     #[test]
     fn wrapping_angles_split_the_line() {
