@@ -86,7 +86,11 @@ fn scene(dir: &Path) -> Scene {
             samples.push(s1[i] + s2[i]);
         }
     }
-    let traj = |f: fn(f64) -> Vec3| (0..=40).map(|k| (k as f64 * 0.1, f(k as f64 * 0.1))).collect();
+    let traj = |f: fn(f64) -> Vec3| {
+        (0..=40)
+            .map(|k| (k as f64 * 0.1, f(k as f64 * 0.1)))
+            .collect()
+    };
     Scene {
         dir: dir.to_path_buf(),
         layout: layout(),
@@ -196,8 +200,12 @@ fn write_output(scene: &Scene, dir: &Path) {
     let s1 = truth.sources[0].signal.clone().unwrap();
     let s2 = truth.sources[1].signal.clone().unwrap();
     let split = 16000; // t = 2 s
-    let before: Vec<f32> = (0..N).map(|i| if i < split { s2[i] } else { 0.0 }).collect();
-    let after: Vec<f32> = (0..N).map(|i| if i >= split { s2[i] } else { 0.0 }).collect();
+    let before: Vec<f32> = (0..N)
+        .map(|i| if i < split { s2[i] } else { 0.0 })
+        .collect();
+    let after: Vec<f32> = (0..N)
+        .map(|i| if i >= split { s2[i] } else { 0.0 })
+        .collect();
     for (label, sig) in [(L1, s1), (L2, before), (L3, after)] {
         Audio::mono(FS, sig)
             .write(&dir.join(format!("audio/{label}.wav")), SampleFormat::F32)
@@ -259,7 +267,7 @@ fn tracking_scores_match_hand_computation() {
     // where the sets are {s1, s2} vs {1.0, 2.0, 3.0} with a steps of 2.0 and b of 3.0.
     let expected: Vec<f64> = (0..STEPS)
         .map(|k| {
-            if k < 20 || k >= 29 {
+            if !(20..29).contains(&k) {
                 0.2
             } else {
                 let a = (29 - k) as f64;
@@ -270,7 +278,12 @@ fn tracking_scores_match_hand_computation() {
         })
         .collect();
     for (got, want) in t.ospa2_over_time.iter().zip(&expected) {
-        assert!(close(got.value, *want, 1e-9), "t = {}: {} vs {want}", got.t, got.value);
+        assert!(
+            close(got.value, *want, 1e-9),
+            "t = {}: {} vs {want}",
+            got.t,
+            got.value
+        );
     }
     let mean = expected.iter().sum::<f64>() / STEPS as f64;
     assert!(close(all.ospa2.total, mean, 1e-9));
@@ -283,7 +296,10 @@ fn tracking_scores_match_hand_computation() {
     let errs: Vec<f64> = (0..STEPS)
         .flat_map(|k| {
             let t = k as f64 * DT;
-            [az_err(track1_at(t), s1_at(t)), az_err(track2_at(t), s2_at(t))]
+            [
+                az_err(track1_at(t), s1_at(t)),
+                az_err(track2_at(t), s2_at(t)),
+            ]
         })
         .collect();
     let want = errs.iter().sum::<f64>() / errs.len() as f64;
@@ -292,7 +308,11 @@ fn tracking_scores_match_hand_computation() {
     // s2's lies on the camera ray (0 px) in the 25 steps it is in view (t >= 1.5).
     let px = &all.pixel_error_px[0];
     assert_eq!(px.error_px.count, 65);
-    assert!(close(px.error_px.mean.unwrap(), 40.0 * 100.0 / 3.0 / 65.0, 1e-6));
+    assert!(close(
+        px.error_px.mean.unwrap(),
+        40.0 * 100.0 / 3.0 / 65.0,
+        1e-6
+    ));
     assert!(close(px.error_px.median.unwrap(), 100.0 / 3.0, 1e-6));
     // Direction space sees the same switch.
     assert_eq!(all.direction.switches, 1);
@@ -330,7 +350,11 @@ fn measurement_scores_match_hand_computation() {
     let want = (0..STEPS).map(per).sum::<f64>() / STEPS as f64;
     let p = m.points.as_ref().unwrap();
     assert!(close(p.ospa.total, want, 1e-9), "{:?} vs {want}", p.ospa);
-    assert!(close(p.ospa.localisation + p.ospa.cardinality, p.ospa.total, 1e-12));
+    assert!(close(
+        p.ospa.localisation + p.ospa.cardinality,
+        p.ospa.total,
+        1e-12
+    ));
     let d = m.doas.as_ref().unwrap();
     // 30 frames of s1 and 15 of s2, each seen 3 deg off; one false candidate per frame.
     assert_eq!((d.pairs, d.missed), (45, 0));
@@ -355,9 +379,15 @@ fn separation_scores_match_hand_computation() {
     assert!(close(s1.si_sdr_mixture_db.unwrap(), half, 0.2), "{s1:?}");
     assert!(s1.si_sdr_improvement_db.unwrap() > 140.0);
     let b = s1.bss.unwrap();
-    assert!(b.sdr_db > 60.0 && b.sir_db > 60.0 && b.sar_db > 60.0, "{b:?}");
+    assert!(
+        b.sdr_db > 60.0 && b.sir_db > 60.0 && b.sar_db > 60.0,
+        "{b:?}"
+    );
     let bm = s1.bss_mixture.unwrap();
-    assert!(close(bm.sir_db, half, 0.3) && close(bm.sdr_db, half, 0.3), "{bm:?}");
+    assert!(
+        close(bm.sir_db, half, 0.3) && close(bm.sdr_db, half, 0.3),
+        "{bm:?}"
+    );
     assert!(bm.sar_db > 40.0, "{bm:?}");
     // s2's stream 2.0 holds it for 1.0-2.0 s and is silent for 2.0-2.5 s: the best scale is 2/3
     // and SI-SDR = 10 log10((4/9) / (1/9 * 2/3 + 4/9 * 1/3)) = 10 log10(2). The microphone has
@@ -416,7 +446,13 @@ fn the_command_prints_tables_and_writes_json() {
         .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for needle in ["Measurements", "Tracks", "Audio", "OSPA(2)", "3-D ID switches"] {
+    for needle in [
+        "Measurements",
+        "Tracks",
+        "Audio",
+        "OSPA(2)",
+        "3-D ID switches",
+    ] {
         assert!(stdout.contains(needle), "missing {needle} in\n{stdout}");
     }
     let report: EvalReport =

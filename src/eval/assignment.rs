@@ -169,7 +169,11 @@ mod tests {
                     continue;
                 }
                 used[j] = true;
-                let here = if transposed { c.at(j, row) } else { c.at(row, j) };
+                let here = if transposed {
+                    c.at(j, row)
+                } else {
+                    c.at(row, j)
+                };
                 best = best.min(here + rec(c, row + 1, used, transposed));
                 used[j] = false;
             }
@@ -191,8 +195,16 @@ mod tests {
 
     #[test]
     fn handles_empty_and_rectangular_shapes() {
-        assert!(assign(&CostMatrix::from_fn(0, 3, |_, _| 1.0)).pairs.is_empty());
-        assert!(assign(&CostMatrix::from_fn(2, 0, |_, _| 1.0)).pairs.is_empty());
+        assert!(
+            assign(&CostMatrix::from_fn(0, 3, |_, _| 1.0))
+                .pairs
+                .is_empty()
+        );
+        assert!(
+            assign(&CostMatrix::from_fn(2, 0, |_, _| 1.0))
+                .pairs
+                .is_empty()
+        );
         let tall = CostMatrix::from_fn(3, 1, |r, _| [5.0, 1.0, 3.0][r]);
         assert_eq!(assign(&tall).pairs, vec![(1, 0)]);
         let wide = CostMatrix::from_fn(1, 3, |_, c| [5.0, 1.0, 3.0][c]);

@@ -228,16 +228,13 @@ fn map_sources(
         .sources
         .iter()
         .map(|s| {
-            let t = inputs
-                .tracks?
-                .all
-                .sources
-                .iter()
-                .find(|x| x.id == s.id)?;
+            let t = inputs.tracks?.all.sources.iter().find(|x| x.id == s.id)?;
             let pick = |shares: &[LabelShare]| shares.iter().find_map(|l| index_of(&l.label));
             pick(&t.active_labels)
                 .map(|j| (j, MappedBy::Tracks))
-                .or_else(|| pick(&t.direction_active_labels).map(|j| (j, MappedBy::DirectionTracks)))
+                .or_else(|| {
+                    pick(&t.direction_active_labels).map(|j| (j, MappedBy::DirectionTracks))
+                })
         })
         .collect();
     let free_sources: Vec<usize> = (0..mapping.len())

@@ -289,7 +289,9 @@ mod tests {
                     for u in 0..l {
                         g[(i * l + t) * n + k * l + u] = set
                             .indices()
-                            .map(|m| at(ri, m as isize - t as isize) * at(rk, m as isize - u as isize))
+                            .map(|m| {
+                                at(ri, m as isize - t as isize) * at(rk, m as isize - u as isize)
+                            })
                             .sum();
                     }
                 }

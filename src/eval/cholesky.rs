@@ -66,11 +66,8 @@ impl Cholesky {
             y[i] = (y[i] - dot(&row[..i], &y[..i])) / row[i];
         }
         for i in (0..n).rev() {
-            let mut s = y[i];
-            for k in i + 1..n {
-                s -= self.l[k * n + i] * y[k];
-            }
-            y[i] = s / self.l[i * n + i];
+            let below: f64 = (i + 1..n).map(|k| self.l[k * n + i] * y[k]).sum();
+            y[i] = (y[i] - below) / self.l[i * n + i];
         }
         y
     }

@@ -197,8 +197,11 @@ pub fn clear_mot(frames: &[MotFrame], gate: f64) -> MotResult {
 mod tests {
     use super::*;
 
+    /// Objects of one frame on a line: `(id, x)`.
+    type Objects<'a> = &'a [(usize, f64)];
+
     /// Frames of 1-D positions: `(truth id, x)` and `(est id, x)`.
-    fn frames(steps: &[(&[(usize, f64)], &[(usize, f64)])]) -> Vec<MotFrame> {
+    fn frames(steps: &[(Objects, Objects)]) -> Vec<MotFrame> {
         steps
             .iter()
             .map(|(t, e)| {

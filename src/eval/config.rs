@@ -108,7 +108,10 @@ impl EvalConfig {
         if let Some(f) = self.measurement_frame_s
             && !positive(f)
         {
-            return bad("measurement_frame_s", "must be a positive number of seconds");
+            return bad(
+                "measurement_frame_s",
+                "must be a positive number of seconds",
+            );
         }
         if !(self.active_fraction > 0.0 && self.active_fraction <= 1.0) {
             return bad("active_fraction", "must be in (0, 1]");

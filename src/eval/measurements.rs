@@ -207,7 +207,10 @@ mod tests {
 
     #[test]
     fn frame_length_is_the_median_spacing() {
-        assert_eq!(inferred_frame(&[0.0, 0.128, 0.256, 0.384, 1.0]), Some(0.128));
+        assert_eq!(
+            inferred_frame(&[0.0, 0.128, 0.256, 0.384, 1.0]),
+            Some(0.128)
+        );
         assert_eq!(inferred_frame(&[0.5]), None);
     }
 

@@ -36,7 +36,12 @@ impl OspaParams {
 }
 
 /// OSPA between two sets whose base distances are `dist(i, j)` for `i < m`, `j < n`.
-pub fn ospa_with(m: usize, n: usize, dist: impl Fn(usize, usize) -> f64, p: OspaParams) -> OspaValue {
+pub fn ospa_with(
+    m: usize,
+    n: usize,
+    dist: impl Fn(usize, usize) -> f64,
+    p: OspaParams,
+) -> OspaValue {
     let (c, order) = (p.cutoff, p.order);
     if m == 0 && n == 0 {
         return OspaValue::default();
@@ -168,7 +173,10 @@ mod tests {
     fn empty_sets() {
         assert_eq!(ospa(&[], &[], P1), OspaValue::default());
         let one = ospa(&[v(0.0, 0.0)], &[], P1);
-        assert_eq!((one.total, one.localisation, one.cardinality), (1.0, 0.0, 1.0));
+        assert_eq!(
+            (one.total, one.localisation, one.cardinality),
+            (1.0, 0.0, 1.0)
+        );
         let c2 = OspaParams::new(2.0, 2.0);
         assert_eq!(ospa(&[], &[v(0.0, 0.0), v(1.0, 1.0)], c2).total, 2.0);
     }
@@ -191,7 +199,11 @@ mod tests {
         let o = ospa(&[v(0.0, 0.0)], &[v(5.0, 0.0)], P1);
         assert!((o.total - 1.0).abs() < 1e-12);
         // Order 2: sqrt((0.3^2 + 1^2) / 2).
-        let o = ospa(&[v(0.0, 0.0)], &[v(0.3, 0.0), v(9.0, 9.0)], OspaParams::new(1.0, 2.0));
+        let o = ospa(
+            &[v(0.0, 0.0)],
+            &[v(0.3, 0.0), v(9.0, 9.0)],
+            OspaParams::new(1.0, 2.0),
+        );
         assert!((o.total - ((0.09 + 1.0) / 2.0f64).sqrt()).abs() < 1e-12);
         assert!((o.total.powi(2) - o.localisation.powi(2) - o.cardinality.powi(2)).abs() < 1e-12);
     }

@@ -81,9 +81,8 @@ pub fn write_plots(
     report: &EvalReport,
     dir: &Path,
 ) -> Result<Vec<PathBuf>, EvalError> {
-    std::fs::create_dir_all(dir).map_err(|e| {
-        EvalError::Write(format!("{}: cannot create folder: {e}", dir.display()))
-    })?;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| EvalError::Write(format!("{}: cannot create folder: {e}", dir.display())))?;
     let tracks = tracks_by_label(out);
     let mut written = Vec::new();
     let mut save = |name: &str, svg: String| -> Result<(), EvalError> {
@@ -105,7 +104,10 @@ pub fn write_plots(
     Ok(written)
 }
 
-fn trajectories(scene: &Scene, tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>) -> Result<String, EvalError> {
+fn trajectories(
+    scene: &Scene,
+    tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>,
+) -> Result<String, EvalError> {
     let truth = scene.truth.as_ref().map_or(&[][..], |t| &t.sources[..]);
     let err = draw_err("the trajectory plot");
     let (xs, ys) = match scene.layout.region {
@@ -273,7 +275,10 @@ fn azimuth(scene: &Scene, tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>) -> Result<
         for (i, (label, pts)) in tracks.iter().enumerate() {
             let c = label_colour(i);
             chart
-                .draw_series(pts.iter().map(|(t, p)| Circle::new((*t, az(p)), 2, c.filled())))
+                .draw_series(
+                    pts.iter()
+                        .map(|(t, p)| Circle::new((*t, az(p)), 2, c.filled())),
+                )
                 .map_err(&err)?
                 .label(format!("track {label}"))
                 .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));

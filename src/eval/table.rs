@@ -83,9 +83,15 @@ fn mot_rows(f: &MotFigures) -> Vec<(String, String)> {
         ("MOTA".into(), pct(f.mota)),
         ("MOTP".into(), num(f.motp, 3)),
         ("IDF1".into(), pct(f.idf1)),
-        ("IDP / IDR".into(), format!("{} / {}", pct(f.idp), pct(f.idr))),
+        (
+            "IDP / IDR".into(),
+            format!("{} / {}", pct(f.idp), pct(f.idr)),
+        ),
         ("ID switches".into(), f.switches.to_string()),
-        ("FP / FN".into(), format!("{} / {}", f.false_positives, f.misses)),
+        (
+            "FP / FN".into(),
+            format!("{} / {}", f.false_positives, f.misses),
+        ),
         ("fragmentations".into(), f.fragmentations.to_string()),
         (
             "MT / PT / ML".into(),
@@ -99,7 +105,10 @@ fn mot_rows(f: &MotFigures) -> Vec<(String, String)> {
 
 fn figure_rows(f: &TrackingFigures) -> Vec<(String, String)> {
     let mut rows = vec![
-        ("truth / track pairs".into(), format!("{} / {}", f.truth_count, f.track_count)),
+        (
+            "truth / track pairs".into(),
+            format!("{} / {}", f.truth_count, f.track_count),
+        ),
         ("OSPA (m)".into(), num(Some(f.ospa.total), 3)),
         (
             "  loc / card".into(),

@@ -335,7 +335,10 @@ fn figures(
         params,
     );
 
-    let origin = layout.arrays.first().map_or(Vec3::zeros(), |a| a.centroid());
+    let origin = layout
+        .arrays
+        .first()
+        .map_or(Vec3::zeros(), |a| a.centroid());
     let az = |p: &Vec3| azimuth_of(&(p - origin));
     let pos_frames = grid.frames(selected, |a, b| (a - b).norm());
     let dir_frames = grid.frames(selected, |a, b| angle_diff(az(b), az(a)).abs());
