@@ -10,7 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Vec3, angle_diff, azimuth_of, deg, rad};
-use crate::scene::{AudioMeasurementFrame, Scene, TruthSource};
+use crate::scene::{AudioMeasurementFrame, Doa, Scene, TruthSource};
 
 use super::config::{EvalConfig, FrameAnchor};
 use super::ospa::{OspaParams, OspaValue, mean_ospa, ospa};
@@ -105,6 +105,61 @@ fn active_sources<'a>(
         .collect()
 }
 
+/// Running counts of the direction candidates of one array.
+#[derive(Default)]
+struct DoaTally {
+    pairs: usize,
+    missed: usize,
+    hits: usize,
+    errors_deg: Vec<f64>,
+    candidates: usize,
+    false_candidates: usize,
+}
+
+impl DoaTally {
+    /// Adds one frame: its candidates and the azimuths of its active sources (rad).
+    fn add(&mut self, doas: &[Doa], truth_az: &[f64], tol: f64) {
+        for &az in truth_az {
+            self.pairs += 1;
+            let nearest = doas
+                .iter()
+                .map(|d| angle_diff(d.azimuth, az).abs())
+                .min_by(f64::total_cmp);
+            match nearest {
+                Some(e) => {
+                    self.errors_deg.push(deg(e));
+                    if e <= tol {
+                        self.hits += 1;
+                    }
+                }
+                None => self.missed += 1,
+            }
+        }
+        self.candidates += doas.len();
+        self.false_candidates += doas
+            .iter()
+            .filter(|d| {
+                !truth_az
+                    .iter()
+                    .any(|&az| angle_diff(d.azimuth, az).abs() <= tol)
+            })
+            .count();
+    }
+
+    fn finish(self, tolerance_deg: f64) -> DoaScores {
+        DoaScores {
+            pairs: self.pairs,
+            missed: self.missed,
+            within_tolerance: (self.pairs > 0).then(|| self.hits as f64 / self.pairs as f64),
+            error_deg: Summary::of(&self.errors_deg),
+            candidates: self.candidates,
+            false_candidate_rate: (self.candidates > 0)
+                .then(|| self.false_candidates as f64 / self.candidates as f64),
+            tolerance_deg,
+        }
+    }
+}
+
 /// Scores the measurements of every array against the truth.
 pub fn score_measurements(
     scene: &Scene,
@@ -131,9 +186,7 @@ pub fn score_measurements(
         let mut ospas = Vec::new();
         let mut n_points = 0usize;
         let mut n_active = 0usize;
-        let (mut pairs, mut missed, mut hits) = (0usize, 0usize, 0usize);
-        let mut errors = Vec::new();
-        let (mut candidates, mut false_candidates) = (0usize, 0usize);
+        let mut doas = DoaTally::default();
         for f in &mine {
             let active = active_sources(sources, f.t, frame_s, cfg);
             n_active += active.len();
@@ -147,33 +200,7 @@ pub fn score_measurements(
                     .iter()
                     .map(|(_, p)| azimuth_of(&(p - centroid)))
                     .collect();
-                for &az in &truth_az {
-                    pairs += 1;
-                    let nearest = f
-                        .doas
-                        .iter()
-                        .map(|d| angle_diff(d.azimuth, az).abs())
-                        .min_by(f64::total_cmp);
-                    match nearest {
-                        Some(e) => {
-                            errors.push(deg(e));
-                            if e <= tol {
-                                hits += 1;
-                            }
-                        }
-                        None => missed += 1,
-                    }
-                }
-                candidates += f.doas.len();
-                false_candidates += f
-                    .doas
-                    .iter()
-                    .filter(|d| {
-                        !truth_az
-                            .iter()
-                            .any(|&az| angle_diff(d.azimuth, az).abs() <= tol)
-                    })
-                    .count();
+                doas.add(&f.doas, &truth_az, tol);
             }
         }
         let n = mine.len() as f64;
@@ -186,16 +213,7 @@ pub fn score_measurements(
                 mean_candidates: n_points as f64 / n,
                 ospa: mean_ospa(&ospas),
             }),
-            doas: has_doas.then(|| DoaScores {
-                pairs,
-                missed,
-                within_tolerance: (pairs > 0).then(|| hits as f64 / pairs as f64),
-                error_deg: Summary::of(&errors),
-                candidates,
-                false_candidate_rate: (candidates > 0)
-                    .then(|| false_candidates as f64 / candidates as f64),
-                tolerance_deg: cfg.doa_tolerance_deg,
-            }),
+            doas: has_doas.then(|| doas.finish(cfg.doa_tolerance_deg)),
         });
     }
     MeasurementsReport { arrays }

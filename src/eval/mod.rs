@@ -18,8 +18,10 @@ pub mod ospa;
 pub mod plots;
 pub mod sample_set;
 pub mod si_sdr;
+mod source_tracking;
 mod stats;
 mod table;
+mod track_grid;
 pub mod tracks;
 
 use serde::{Deserialize, Serialize};

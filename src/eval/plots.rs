@@ -110,22 +110,7 @@ fn trajectories(
 ) -> Result<String, EvalError> {
     let truth = scene.truth.as_ref().map_or(&[][..], |t| &t.sources[..]);
     let err = draw_err("the trajectory plot");
-    let (xs, ys) = match scene.layout.region {
-        Some(r) => (r.min.x..r.max.x, r.min.y..r.max.y),
-        None => {
-            let pts = || {
-                truth
-                    .iter()
-                    .flat_map(|s| s.trajectory.iter().map(|p| p.1))
-                    .chain(scene.layout.arrays.iter().map(|a| a.centroid()))
-            };
-            (
-                span(pts().map(|p| p.x), -1.0..1.0),
-                span(pts().map(|p| p.y), -1.0..1.0),
-            )
-        }
-    };
-    let (xs, ys) = equal_aspect(xs, ys);
+    let (xs, ys) = equal_aspect(plane_ranges(scene, tracks));
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
@@ -196,8 +181,32 @@ fn trajectories(
     Ok(svg)
 }
 
+/// x and y ranges of the trajectory plot: the region, else what there is to draw.
+fn plane_ranges(
+    scene: &Scene,
+    tracks: &BTreeMap<Label, Vec<(f64, Vec3)>>,
+) -> (Range<f64>, Range<f64>) {
+    let truth = scene.truth.as_ref().map_or(&[][..], |t| &t.sources[..]);
+    match scene.layout.region {
+        Some(r) => (r.min.x..r.max.x, r.min.y..r.max.y),
+        None => {
+            let pts = || {
+                truth
+                    .iter()
+                    .flat_map(|s| s.trajectory.iter().map(|p| p.1))
+                    .chain(scene.layout.arrays.iter().map(|a| a.centroid()))
+                    .chain(tracks.values().flat_map(|v| v.iter().map(|p| p.1)))
+            };
+            (
+                span(pts().map(|p| p.x), -1.0..1.0),
+                span(pts().map(|p| p.y), -1.0..1.0),
+            )
+        }
+    }
+}
+
 /// Widens the shorter of two ranges so that a metre is as long on both axes of the plot area.
-fn equal_aspect(xs: Range<f64>, ys: Range<f64>) -> (Range<f64>, Range<f64>) {
+fn equal_aspect((xs, ys): (Range<f64>, Range<f64>)) -> (Range<f64>, Range<f64>) {
     // Plot area left by the caption, margins and label areas of the trajectory chart.
     let (w, h) = (f64::from(SIZE.0) - 80.0, f64::from(SIZE.1) - 110.0);
     let (dx, dy) = (xs.end - xs.start, ys.end - ys.start);
@@ -335,7 +344,7 @@ mod tests {
 
     #[test]
     fn equal_aspect_widens_the_short_side() {
-        let (xs, ys) = equal_aspect(0.0..1.0, 0.0..10.0);
+        let (xs, ys) = equal_aspect((0.0..1.0, 0.0..10.0));
         assert_eq!(ys, 0.0..10.0);
         let ratio = (xs.end - xs.start) / (ys.end - ys.start);
         let want = (f64::from(SIZE.0) - 80.0) / (f64::from(SIZE.1) - 110.0);

@@ -7,20 +7,21 @@
 //! "audible" sources only: present and having spoken within the last `audible_hold_s` seconds,
 //! which is what an audio-only run can be expected to track.
 
-use std::collections::BTreeMap;
-
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{Layout, Vec3, angle_diff, azimuth_of, deg, rad};
-use crate::label::Label;
 use crate::scene::TruthSource;
 use crate::scene::format::TracksLine;
 
-use super::clear_mot::{Match, MotFrame, MotResult, clear_mot};
+use super::clear_mot::{MotResult, clear_mot};
 use super::config::EvalConfig;
 use super::identity::{IdentityScores, identity_scores};
 use super::ospa::{OspaParams, OspaValue, TrackSamples, mean_ospa, ospa, ospa2_series};
+use super::source_tracking::{SourceContext, source_tracking};
 use super::stats::Summary;
+use super::track_grid::Grid;
+
+pub use super::source_tracking::{LabelShare, SourceTracking};
 
 /// Tracking scores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -136,125 +137,6 @@ pub struct CameraError {
     pub error_px: Summary,
 }
 
-/// Share of a source's active time matched to one label.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct LabelShare {
-    /// The label.
-    pub label: Label,
-    /// Fraction of the source's active steps matched to it.
-    pub share: f64,
-}
-
-/// Tracking of one true source.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SourceTracking {
-    /// Source id.
-    pub id: String,
-    /// Steps at which it is selected (present, or audible).
-    pub steps: usize,
-    /// Steps at which it is matched in 3-D.
-    pub matched_steps: usize,
-    /// First step at which it is present, speaking and in some camera's view (present and
-    /// speaking when the layout has no camera).
-    pub onset_s: Option<f64>,
-    /// Time from the onset to its first 3-D match at or after it.
-    pub initiation_delay_s: Option<f64>,
-    /// Time from the onset to its first azimuth match at or after it.
-    pub direction_initiation_delay_s: Option<f64>,
-    /// Distinct labels matched to it in 3-D.
-    pub labels_matched: usize,
-    /// Labels matched in 3-D during its active (speaking) steps, largest share first.
-    pub active_labels: Vec<LabelShare>,
-    /// Labels matched in azimuth during its active steps, largest share first.
-    pub direction_active_labels: Vec<LabelShare>,
-    /// Labels carrying at least `continuity_share` of its active steps (3-D); the target is 1.
-    pub stream_labels: usize,
-}
-
-/// The tracks on a common grid of steps.
-struct Grid {
-    times: Vec<f64>,
-    labels: Vec<Label>,
-    /// Per step: (label index, position).
-    est: Vec<Vec<(usize, Vec3)>>,
-    /// Per source, per step: position when present.
-    truth: Vec<Vec<Option<Vec3>>>,
-}
-
-impl Grid {
-    fn new(lines: &[TracksLine], sources: &[TruthSource]) -> Self {
-        let mut index: BTreeMap<Label, usize> = BTreeMap::new();
-        for l in lines {
-            for tr in &l.tracks {
-                index.entry(tr.label).or_insert(0);
-            }
-        }
-        for (k, v) in index.values_mut().enumerate() {
-            *v = k;
-        }
-        let est = lines
-            .iter()
-            .map(|l| {
-                let mut seen = Vec::new();
-                l.tracks
-                    .iter()
-                    .filter_map(|tr| {
-                        let k = index[&tr.label];
-                        // A label listed twice in one line keeps its first estimate.
-                        if seen.contains(&k) {
-                            return None;
-                        }
-                        seen.push(k);
-                        Some((k, Vec3::from(tr.position)))
-                    })
-                    .collect()
-            })
-            .collect();
-        let times: Vec<f64> = lines.iter().map(|l| l.t).collect();
-        let truth = sources
-            .iter()
-            .map(|s| times.iter().map(|&t| s.position_at(t)).collect())
-            .collect();
-        Self {
-            times,
-            labels: index.into_keys().collect(),
-            est,
-            truth,
-        }
-    }
-
-    fn est_samples(&self) -> Vec<TrackSamples> {
-        let mut out = vec![vec![None; self.times.len()]; self.labels.len()];
-        for (k, step) in self.est.iter().enumerate() {
-            for &(j, p) in step {
-                out[j][k] = Some(p);
-            }
-        }
-        out
-    }
-
-    /// MOT frames over the selected truths with distance `dist(truth, estimate)`.
-    fn frames(&self, selected: &[Vec<bool>], dist: impl Fn(&Vec3, &Vec3) -> f64) -> Vec<MotFrame> {
-        (0..self.times.len())
-            .map(|k| {
-                let truth: Vec<(usize, Vec3)> = self
-                    .truth
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| selected[*i][k])
-                    .filter_map(|(i, s)| s[k].map(|p| (i, p)))
-                    .collect();
-                let est = &self.est[k];
-                MotFrame::new(
-                    truth.iter().map(|t| t.0).collect(),
-                    est.iter().map(|e| e.0).collect(),
-                    |i, j| dist(&truth[i].1, &est[j].1),
-                )
-            })
-            .collect()
-    }
-}
-
 /// Whether `s` spoke at some time in `[t - hold, t]`.
 fn spoke_within(s: &TruthSource, t: f64, hold: f64) -> bool {
     s.active.iter().any(|&(a, b)| a <= t && b >= t - hold)
@@ -311,6 +193,60 @@ fn figures(
     selected: &[Vec<bool>],
     cfg: &EvalConfig,
 ) -> (TrackingFigures, Vec<OspaValue>) {
+    let (ospas, ospa2) = set_distances(grid, selected, cfg);
+    let origin = layout
+        .arrays
+        .first()
+        .map_or(Vec3::zeros(), |a| a.centroid());
+    let az = |p: &Vec3| azimuth_of(&(p - origin));
+    let pos_frames = grid.frames(selected, |a, b| (a - b).norm());
+    let dir_frames = grid.frames(selected, |a, b| angle_diff(az(b), az(a)).abs());
+    let pos = clear_mot(&pos_frames, cfg.gate_m);
+    let pos_id = identity_scores(&pos_frames, cfg.gate_m);
+    let az_gate = rad(cfg.azimuth_gate_deg);
+    let dir = clear_mot(&dir_frames, az_gate);
+    let dir_id = identity_scores(&dir_frames, az_gate);
+
+    let pos_pairs = matched_pairs(grid, &pos);
+    let az_error = |(_, t, e): &(usize, Vec3, Vec3)| deg(angle_diff(az(e), az(t)).abs());
+    let az_errors: Vec<f64> = pos_pairs.iter().map(az_error).collect();
+    let dir_errors: Vec<f64> = matched_pairs(grid, &dir).iter().map(az_error).collect();
+    let pixel_error_px = pixel_errors(layout, &pos_pairs);
+
+    let ctx = SourceContext {
+        layout,
+        grid,
+        selected,
+        pos: &pos,
+        dir: &dir,
+        cfg,
+    };
+    let per_source = sources
+        .iter()
+        .enumerate()
+        .map(|(i, s)| source_tracking(&ctx, s, i))
+        .collect();
+    let figures = TrackingFigures {
+        truth_count: pos.truth_count,
+        track_count: pos.est_count,
+        ospa: mean_ospa(&ospas),
+        ospa2: mean_ospa(&ospa2),
+        position: MotFigures::new(&pos, &pos_id, cfg.gate_m, |v| v),
+        azimuth_error_deg: Summary::of(&az_errors),
+        pixel_error_px,
+        direction: MotFigures::new(&dir, &dir_id, az_gate, deg),
+        direction_error_deg: Summary::of(&dir_errors),
+        sources: per_source,
+    };
+    (figures, ospa2)
+}
+
+/// OSPA at every step and OSPA(2) over the sliding window, against the selected truths.
+fn set_distances(
+    grid: &Grid,
+    selected: &[Vec<bool>],
+    cfg: &EvalConfig,
+) -> (Vec<OspaValue>, Vec<OspaValue>) {
     let params = OspaParams::new(cfg.ospa_cutoff_m, cfg.ospa_order);
     let steps = grid.times.len();
     let truth_samples: Vec<TrackSamples> = grid
@@ -334,47 +270,31 @@ fn figures(
         cfg.ospa2_window_steps,
         params,
     );
+    (ospas, ospa2)
+}
 
-    let origin = layout
-        .arrays
-        .first()
-        .map_or(Vec3::zeros(), |a| a.centroid());
-    let az = |p: &Vec3| azimuth_of(&(p - origin));
-    let pos_frames = grid.frames(selected, |a, b| (a - b).norm());
-    let dir_frames = grid.frames(selected, |a, b| angle_diff(az(b), az(a)).abs());
-    let pos = clear_mot(&pos_frames, cfg.gate_m);
-    let pos_id = identity_scores(&pos_frames, cfg.gate_m);
-    let az_gate = rad(cfg.azimuth_gate_deg);
-    let dir = clear_mot(&dir_frames, az_gate);
-    let dir_id = identity_scores(&dir_frames, az_gate);
-
-    let matched_pairs = |m: &MotResult| -> Vec<(usize, Vec3, Vec3)> {
-        m.matches
-            .iter()
-            .enumerate()
-            .flat_map(|(k, ms)| {
-                ms.iter().filter_map(move |mt| {
-                    let t = grid.truth[mt.truth][k]?;
-                    let e = grid.est[k].iter().find(|e| e.0 == mt.est)?.1;
-                    Some((k, t, e))
-                })
+/// `(step, true position, estimated position)` of every correspondence of a matching.
+fn matched_pairs(grid: &Grid, m: &MotResult) -> Vec<(usize, Vec3, Vec3)> {
+    m.matches
+        .iter()
+        .enumerate()
+        .flat_map(|(k, ms)| {
+            ms.iter().filter_map(move |mt| {
+                let t = grid.truth[mt.truth][k]?;
+                let e = grid.est[k].iter().find(|e| e.0 == mt.est)?.1;
+                Some((k, t, e))
             })
-            .collect()
-    };
-    let pos_pairs = matched_pairs(&pos);
-    let az_errors: Vec<f64> = pos_pairs
-        .iter()
-        .map(|(_, t, e)| deg(angle_diff(az(e), az(t)).abs()))
-        .collect();
-    let dir_errors: Vec<f64> = matched_pairs(&dir)
-        .iter()
-        .map(|(_, t, e)| deg(angle_diff(az(e), az(t)).abs()))
-        .collect();
-    let pixel_error_px = layout
+        })
+        .collect()
+}
+
+/// Pixel error of the matched pairs in each camera, where the truth is in view.
+fn pixel_errors(layout: &Layout, pairs: &[(usize, Vec3, Vec3)]) -> Vec<CameraError> {
+    layout
         .cameras
         .iter()
         .map(|cam| {
-            let errs: Vec<f64> = pos_pairs
+            let errs: Vec<f64> = pairs
                 .iter()
                 .filter(|(_, t, _)| cam.in_view(t))
                 .filter_map(|(_, t, e)| Some((cam.project(e)? - cam.project(t)?).norm()))
@@ -384,113 +304,14 @@ fn figures(
                 error_px: Summary::of(&errs),
             }
         })
-        .collect();
-
-    let per_source = sources
-        .iter()
-        .enumerate()
-        .map(|(i, s)| source_tracking(layout, s, i, grid, selected, &pos, &dir, cfg))
-        .collect();
-    let figures = TrackingFigures {
-        truth_count: pos.truth_count,
-        track_count: pos.est_count,
-        ospa: mean_ospa(&ospas),
-        ospa2: mean_ospa(&ospa2),
-        position: MotFigures::new(&pos, &pos_id, cfg.gate_m, |v| v),
-        azimuth_error_deg: Summary::of(&az_errors),
-        pixel_error_px,
-        direction: MotFigures::new(&dir, &dir_id, az_gate, deg),
-        direction_error_deg: Summary::of(&dir_errors),
-        sources: per_source,
-    };
-    (figures, ospa2)
-}
-
-/// The label matched to source `i` at each step, if any.
-fn matched_label(m: &MotResult, i: usize) -> Vec<Option<usize>> {
-    m.matches
-        .iter()
-        .map(|ms: &Vec<Match>| ms.iter().find(|x| x.truth == i).map(|x| x.est))
         .collect()
-}
-
-/// Shares of the active steps matched to each label, largest first.
-fn active_shares(labels: &[Label], matched: &[Option<usize>], active: &[bool]) -> Vec<LabelShare> {
-    let n = active.iter().filter(|a| **a).count();
-    let mut counts: BTreeMap<usize, usize> = BTreeMap::new();
-    for (m, &a) in matched.iter().zip(active) {
-        if let (Some(j), true) = (m, a) {
-            *counts.entry(*j).or_default() += 1;
-        }
-    }
-    let mut shares: Vec<LabelShare> = counts
-        .into_iter()
-        .map(|(j, c)| LabelShare {
-            label: labels[j],
-            share: c as f64 / n.max(1) as f64,
-        })
-        .collect();
-    shares.sort_by(|a, b| b.share.total_cmp(&a.share).then(a.label.cmp(&b.label)));
-    shares
-}
-
-#[allow(clippy::too_many_arguments)]
-fn source_tracking(
-    layout: &Layout,
-    s: &TruthSource,
-    i: usize,
-    grid: &Grid,
-    selected: &[Vec<bool>],
-    pos: &MotResult,
-    dir: &MotResult,
-    cfg: &EvalConfig,
-) -> SourceTracking {
-    let sel = &selected[i];
-    let pos_match = matched_label(pos, i);
-    let dir_match = matched_label(dir, i);
-    let onset = grid.times.iter().enumerate().position(|(k, &t)| {
-        sel[k]
-            && s.is_active(t)
-            && grid.truth[i][k].is_some_and(|p| {
-                layout.cameras.is_empty() || layout.cameras.iter().any(|c| c.in_view(&p))
-            })
-    });
-    let delay = |m: &[Option<usize>]| -> Option<f64> {
-        let k0 = onset?;
-        let k = (k0..m.len()).find(|&k| m[k].is_some())?;
-        Some(grid.times[k] - grid.times[k0])
-    };
-    let active: Vec<bool> = grid
-        .times
-        .iter()
-        .enumerate()
-        .map(|(k, &t)| sel[k] && s.is_active(t))
-        .collect();
-    let active_labels = active_shares(&grid.labels, &pos_match, &active);
-    let mut distinct: Vec<usize> = pos_match.iter().flatten().copied().collect();
-    distinct.sort_unstable();
-    distinct.dedup();
-    SourceTracking {
-        id: s.id.clone(),
-        steps: sel.iter().filter(|b| **b).count(),
-        matched_steps: pos_match.iter().flatten().count(),
-        onset_s: onset.map(|k| grid.times[k]),
-        initiation_delay_s: delay(&pos_match),
-        direction_initiation_delay_s: delay(&dir_match),
-        labels_matched: distinct.len(),
-        stream_labels: active_labels
-            .iter()
-            .filter(|l| l.share >= cfg.continuity_share)
-            .count(),
-        active_labels,
-        direction_active_labels: active_shares(&grid.labels, &dir_match, &active),
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::geometry::MicArray;
+    use crate::label::Label;
     use crate::scene::format::TrackFile;
 
     fn layout() -> Layout {
