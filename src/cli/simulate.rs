@@ -24,16 +24,16 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Scene length in seconds (overrides the preset's).
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Number of talkers (presets only).
     #[arg(long, value_name = "N")]
     pub speakers: Option<usize>,
     /// Reverberation time T30 in seconds.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub rt60: Option<f64>,
     /// Sensor-noise SNR in dB (speech power at the reference microphone while anyone talks).
-    #[arg(long, value_name = "DB")]
+    #[arg(long, value_name = "DB", allow_negative_numbers = true)]
     pub snr: Option<f64>,
     /// Folder of WAV files (one per talker, name order) to use as speech instead of synthetic
     /// voices; resampled and mixed to mono as needed.
@@ -166,12 +166,7 @@ fn read_config(path: &Path) -> Result<SimConfig, CliError> {
     } else {
         let de = &mut serde_json::Deserializer::from_str(&text);
         serde_path_to_error::deserialize(de).map_err(|e| {
-            CliError::input(format!(
-                "{}: {}: {}",
-                path.display(),
-                e.path(),
-                e.inner()
-            ))
+            CliError::input(format!("{}: {}: {}", path.display(), e.path(), e.inner()))
         })
     }
 }

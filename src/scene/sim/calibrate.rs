@@ -141,7 +141,9 @@ pub fn reverberation_for(
         ));
     }
     if t30(lo) < rt60_s {
-        return Err(format!("RT60 {rt60_s} s is longer than this room can reverberate"));
+        return Err(format!(
+            "RT60 {rt60_s} s is longer than this room can reverberate"
+        ));
     }
     for _ in 0..40 {
         let mid = 0.5 * (lo + hi);

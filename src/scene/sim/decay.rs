@@ -57,7 +57,7 @@ mod tests {
         let h: Vec<f64> = (0..16000)
             .map(|n| {
                 let t = n as f64 / fs;
-                10f64.powf(-3.0 * t / 0.4) * if n % 2 == 0 { 1.0 } else { -1.0 }
+                10f64.powf(-3.0 * t / 0.4) * if n.is_multiple_of(2) { 1.0 } else { -1.0 }
             })
             .collect();
         let t20 = schroeder_rt60(&h, fs, 20.0).unwrap();

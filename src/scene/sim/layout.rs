@@ -4,8 +4,8 @@ use nalgebra::{Matrix3, Matrix3x4};
 
 use crate::geometry::{Aabb, Camera, Layout, MicArray, Vec3};
 
-use super::{SimError, WALL_MARGIN_M};
 use super::config::{ArrayGeometry, CameraConfig, SimConfig};
+use super::{SimError, WALL_MARGIN_M};
 
 /// Microphone positions of an array geometry.
 pub fn mic_positions(g: &ArrayGeometry) -> Vec<Vec3> {
@@ -17,7 +17,9 @@ pub fn mic_positions(g: &ArrayGeometry) -> Vec<Vec3> {
             axis,
         } => {
             let c = Vec3::from(*centre);
-            let a = Vec3::from(*axis).try_normalize(1e-12).unwrap_or_else(Vec3::x);
+            let a = Vec3::from(*axis)
+                .try_normalize(1e-12)
+                .unwrap_or_else(Vec3::x);
             let mid = (*count as f64 - 1.0) / 2.0;
             (0..*count)
                 .map(|i| c + a * ((i as f64 - mid) * spacing_m))
@@ -136,7 +138,10 @@ mod tests {
         let c = CameraConfig::default();
         let cam = camera(&c, "cameras[0]").unwrap();
         let p = cam.project(&Vec3::from(c.look_at.unwrap())).unwrap();
-        assert!((p.x - 640.0).abs() < 1e-6 && (p.y - 360.0).abs() < 1e-6, "{p:?}");
+        assert!(
+            (p.x - 640.0).abs() < 1e-6 && (p.y - 360.0).abs() < 1e-6,
+            "{p:?}"
+        );
         // A point above the target is higher in the image (smaller v).
         let q = cam
             .project(&(Vec3::from(c.look_at.unwrap()) + Vec3::new(0.0, 0.0, 0.3)))
@@ -164,6 +169,9 @@ mod tests {
             radius_m: 0.05,
             start_azimuth_deg: 0.0,
         });
-        assert!(circ.iter().all(|m| ((m - Vec3::new(1.0, 1.0, 0.8)).norm() - 0.05).abs() < 1e-12));
+        assert!(
+            circ.iter()
+                .all(|m| ((m - Vec3::new(1.0, 1.0, 0.8)).norm() - 0.05).abs() < 1e-12)
+        );
     }
 }

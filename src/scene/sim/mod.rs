@@ -161,10 +161,15 @@ pub fn simulate_with_progress(
     let mut images = Vec::with_capacity(talkers.len());
     for t in &talkers {
         let mut out = vec![vec![0.0; len]; mics.len()];
-        renderer.render(&t.dry, &|time| t.motion.position(time), &mut out, &mut || {
-            done += 1;
-            progress(done, total);
-        });
+        renderer.render(
+            &t.dry,
+            &|time| t.motion.position(time),
+            &mut out,
+            &mut || {
+                done += 1;
+                progress(done, total);
+            },
+        );
         for (m, o) in mixture.iter_mut().zip(&out) {
             m.iter_mut().zip(o).for_each(|(a, b)| *a += b);
         }
@@ -178,7 +183,13 @@ pub fn simulate_with_progress(
     let any_active: Vec<(f64, f64)> = talkers.iter().flat_map(|t| t.active.clone()).collect();
     let speech_power = noise::active_power(&speech_ref, &any_active, fs);
     if let Some(p) = &cfg.noise.point {
-        let dry = noise::fan(len, fs, p.hum_hz, p.corner_hz, &mut rng_for(seed, streams::POINT, 0));
+        let dry = noise::fan(
+            len,
+            fs,
+            p.hum_hz,
+            p.corner_hz,
+            &mut rng_for(seed, streams::POINT, 0),
+        );
         let mut out = vec![vec![0.0; len]; mics.len()];
         let at = Vec3::from(p.position);
         renderer.render(&dry, &|_| at, &mut out, &mut || {
@@ -187,14 +198,22 @@ pub fn simulate_with_progress(
         });
         let level = noise::mean_power(&out[0]);
         let target = speech_power / 10f64.powf(p.snr_db / 10.0);
-        let g = if level > 0.0 { (target / level).sqrt() } else { 0.0 };
+        let g = if level > 0.0 {
+            (target / level).sqrt()
+        } else {
+            0.0
+        };
         for (m, o) in mixture.iter_mut().zip(&out) {
             m.iter_mut().zip(o).for_each(|(a, b)| *a += g * b);
         }
     }
     let sensor_power = speech_power / 10f64.powf(cfg.noise.snr_db / 10.0);
     for (i, m) in mixture.iter_mut().enumerate() {
-        let w = noise::white(len, sensor_power, &mut rng_for(seed, streams::SENSOR, i as u64));
+        let w = noise::white(
+            len,
+            sensor_power,
+            &mut rng_for(seed, streams::SENSOR, i as u64),
+        );
         m.iter_mut().zip(&w).for_each(|(a, b)| *a += b);
     }
 
@@ -209,7 +228,11 @@ pub fn simulate_with_progress(
             message: "the simulation produced non-finite samples".into(),
         });
     }
-    let gain = if peak > 0.0 { cfg.peak_level / peak } else { 1.0 };
+    let gain = if peak > 0.0 {
+        cfg.peak_level / peak
+    } else {
+        1.0
+    };
     let mut samples = vec![0f32; len * mics.len()];
     for (c, m) in mixture.iter().enumerate() {
         for (n, v) in m.iter().enumerate() {
@@ -270,10 +293,11 @@ fn make_talkers(
     let size = Vec3::from(cfg.room.size_m);
     // Sway never takes a mouth closer to a wall than a path may go.
     let m = WALL_MARGIN_M;
-    let bounds = Aabb::new(Vec3::new(m, m, 0.3), size - Vec3::new(m, m, m))
-    .map_err(|e| SimError::Config {
-        field: "room.size_m".into(),
-        message: e.message,
+    let bounds = Aabb::new(Vec3::new(m, m, 0.3), size - Vec3::new(m, m, m)).map_err(|e| {
+        SimError::Config {
+            field: "room.size_m".into(),
+            message: e.message,
+        }
     })?;
     let default_look = layout
         .cameras
@@ -325,7 +349,11 @@ fn make_talkers(
                 .map(|p| (p[0], p[1]))
                 .collect()
         } else {
-            s.speech.phrases.iter().map(|p| (p[0], p[1].min(d))).collect()
+            s.speech
+                .phrases
+                .iter()
+                .map(|p| (p[0], p[1].min(d)))
+                .collect()
         };
         let (dry, active) = match &files {
             Some(files) => {

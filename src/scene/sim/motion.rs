@@ -130,9 +130,9 @@ impl Wobble {
 
     /// Value of axis `axis` at `t`.
     pub fn at(&self, axis: usize, t: f64) -> f64 {
-        self.terms
-            .get(axis)
-            .map_or(0.0, |ts| ts.iter().map(|(a, w, p)| a * (w * t + p).sin()).sum())
+        self.terms.get(axis).map_or(0.0, |ts| {
+            ts.iter().map(|(a, w, p)| a * (w * t + p).sin()).sum()
+        })
     }
 }
 
@@ -216,7 +216,10 @@ impl Motion {
         let x = ((t - self.enter_s) / FACING_STEP_S).clamp(0.0, (self.facing.len() - 1) as f64);
         let i = (x.floor() as usize).min(self.facing.len().saturating_sub(2));
         let a = x - i as f64;
-        let (f0, f1) = (self.facing[i], *self.facing.get(i + 1).unwrap_or(&self.facing[i]));
+        let (f0, f1) = (
+            self.facing[i],
+            *self.facing.get(i + 1).unwrap_or(&self.facing[i]),
+        );
         wrap_angle(f0 + a * (f1 - f0))
     }
 
@@ -304,7 +307,11 @@ mod tests {
         };
         let m = Motion::new(0.0, 10.0, path, 1.6, 0.0, bounds, &plan, &mut rng);
         // Walking along +x at mid-path.
-        assert!(angle_diff(m.facing(2.0), 0.0).abs() < 0.1, "{}", m.facing(2.0));
+        assert!(
+            angle_diff(m.facing(2.0), 0.0).abs() < 0.1,
+            "{}",
+            m.facing(2.0)
+        );
         // Standing at (4, 5): looks at (4, 9), i.e. +y.
         assert!(angle_diff(m.facing(6.0), PI / 2.0).abs() < 0.05);
         // Turned away: -y.

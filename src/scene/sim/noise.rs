@@ -25,11 +25,7 @@ pub fn active_power(x: &[f64], intervals: &[(f64, f64)], sample_rate: f64) -> f6
         .zip(&mask)
         .filter(|(_, m)| **m)
         .fold((0.0, 0usize), |(e, n), (v, _)| (e + v * v, n + 1));
-    if n == 0 {
-        mean_power(x)
-    } else {
-        e / n as f64
-    }
+    if n == 0 { mean_power(x) } else { e / n as f64 }
 }
 
 /// Mean power of `x` (0 when empty).
@@ -90,7 +86,9 @@ pub fn fan<R: Rng + ?Sized>(
                 let wob = 1.0 + 0.2 * (2.0 * PI * wobble_hz * t).sin();
                 (1..=6)
                     .filter(|h| (*h as f64) * hum_hz < 0.45 * sample_rate)
-                    .map(|h| wob * (2.0 * PI * h as f64 * hum_hz * t + phases[h - 1]).sin() / h as f64)
+                    .map(|h| {
+                        wob * (2.0 * PI * h as f64 * hum_hz * t + phases[h - 1]).sin() / h as f64
+                    })
                     .sum()
             })
             .collect();

@@ -114,13 +114,7 @@ fn u<R: Rng + ?Sized>(rng: &mut R, lo: f64, hi: f64) -> f64 {
     rng.random_range(lo..hi)
 }
 
-fn base(
-    opts: &PresetOptions,
-    duration: f64,
-    size: [f64; 3],
-    rt60: f64,
-    snr: f64,
-) -> SimConfig {
+fn base(opts: &PresetOptions, duration: f64, size: [f64; 3], rt60: f64, snr: f64) -> SimConfig {
     SimConfig {
         duration_s: opts.duration_s.unwrap_or(duration),
         sample_rate: 16000,
@@ -149,17 +143,33 @@ pub(crate) fn draw_voices<R: Rng + ?Sized>(n: usize, rng: &mut R) -> Vec<VoiceCo
     let first_female = rng.random_range(0.0..1.0) < 0.5;
     let mut voices: Vec<VoiceConfig> = Vec::with_capacity(n);
     for i in 0..n {
-        let female = (i % 2 == 0) == first_female;
+        let female = i.is_multiple_of(2) == first_female;
         let mut v = VoiceConfig::default();
         for _ in 0..100 {
             v = VoiceConfig {
-                f0_hz: r3(if female { u(rng, 175.0, 240.0) } else { u(rng, 95.0, 140.0) }),
+                f0_hz: r3(if female {
+                    u(rng, 175.0, 240.0)
+                } else {
+                    u(rng, 95.0, 140.0)
+                }),
                 f0_range_st: r3(u(rng, 4.0, 7.0)),
-                formant_scale: r3(if female { u(rng, 1.12, 1.2) } else { u(rng, 0.95, 1.05) }),
+                formant_scale: r3(if female {
+                    u(rng, 1.12, 1.2)
+                } else {
+                    u(rng, 0.95, 1.05)
+                }),
                 syllable_rate_hz: r3(u(rng, 3.5, 5.5)),
                 level_db: r3(u(rng, -2.0, 2.0)),
-                breathiness: r3(if female { u(rng, 0.15, 0.3) } else { u(rng, 0.05, 0.15) }),
-                open_quotient: r3(if female { u(rng, 0.6, 0.75) } else { u(rng, 0.5, 0.6) }),
+                breathiness: r3(if female {
+                    u(rng, 0.15, 0.3)
+                } else {
+                    u(rng, 0.05, 0.15)
+                }),
+                open_quotient: r3(if female {
+                    u(rng, 0.6, 0.75)
+                } else {
+                    u(rng, 0.5, 0.6)
+                }),
             };
             let distinct = voices
                 .iter()
@@ -229,7 +239,10 @@ fn walk<R: Rng + ?Sized>(
 
 /// Smallest distance between two talkers present at the same time (paths sampled every 0.1 s).
 fn min_separation(speakers: &[SpeakerConfig], duration: f64) -> f64 {
-    let paths: Vec<Path> = speakers.iter().map(|s| Path::from_keyframes(&s.path)).collect();
+    let paths: Vec<Path> = speakers
+        .iter()
+        .map(|s| Path::from_keyframes(&s.path))
+        .collect();
     let mut best = f64::INFINITY;
     let mut t = 0.0;
     while t <= duration {
@@ -336,7 +349,12 @@ fn paper_linear6(opts: &PresetOptions, seed: u64) -> SimConfig {
                     r3(entries[i][0] + u(&mut rng, -0.15, 0.15)),
                     r3(entries[i][1] + u(&mut rng, -0.1, 0.1)),
                 ];
-                let end = [start[0] + u(&mut rng, -0.3, 0.3), u(&mut rng, 1.8, 2.2)];
+                // Converge a little towards the sensors so that nobody leaves the camera's
+                // field of view on the way.
+                let end = [
+                    start[0] + 0.3 * (camera_xy[0] - start[0]) + u(&mut rng, -0.1, 0.1),
+                    u(&mut rng, 1.8, 2.2),
+                ];
                 let depart = r3(enter + u(&mut rng, 0.3, 1.0) * squeeze);
                 let mut path = vec![[enter, start[0], start[1]], [depart, start[0], start[1]]];
                 let speed = u(&mut rng, 0.2, 0.45);
@@ -446,7 +464,13 @@ fn uca8(opts: &PresetOptions, seed: u64) -> SimConfig {
     let squeeze = (d / 20.0).min(1.0);
     let mut speakers = Vec::new();
     for _attempt in 0..200 {
-        let az = spaced_azimuths(n, -10f64.to_radians(), 190f64.to_radians(), 40f64.to_radians(), &mut rng);
+        let az = spaced_azimuths(
+            n,
+            -10f64.to_radians(),
+            190f64.to_radians(),
+            40f64.to_radians(),
+            &mut rng,
+        );
         let walker = (n >= 3).then_some(n - 1);
         let away = rng.random_range(0..n.saturating_sub(walker.map_or(0, |_| 1)).max(1));
         let mut ok = true;
@@ -462,7 +486,11 @@ fn uca8(opts: &PresetOptions, seed: u64) -> SimConfig {
                     1 => true,
                     _ => Some(i) == walker || rng.random_range(0.0..1.0) < 0.5,
                 };
-                let height = if standing { u(&mut rng, 1.5, 1.75) } else { u(&mut rng, 1.1, 1.3) };
+                let height = if standing {
+                    u(&mut rng, 1.5, 1.75)
+                } else {
+                    u(&mut rng, 1.1, 1.3)
+                };
                 let (enter, path) = if Some(i) == walker {
                     let enter = r3(u(&mut rng, 0.15, 0.3) * d);
                     let via_r = r + 0.7;
@@ -610,12 +638,19 @@ fn two_arrays(opts: &PresetOptions, seed: u64) -> SimConfig {
             .map(|i| {
                 let late = i == 1 && n >= 2;
                 let leaves = i == 2;
-                let enter = if late { r3(u(&mut rng, 0.2, 0.35) * d) } else { 0.0 };
+                let enter = if late {
+                    r3(u(&mut rng, 0.2, 0.35) * d)
+                } else {
+                    0.0
+                };
                 let start = if late {
                     door
                 } else {
                     loop {
-                        let p = [u(&mut rng, area.0[0], area.1[0]), u(&mut rng, area.0[1], area.1[1])];
+                        let p = [
+                            u(&mut rng, area.0[0], area.1[0]),
+                            u(&mut rng, area.0[1], area.1[1]),
+                        ];
                         let inside = (0..2).all(|k| p[k] > keep_out.0[k] && p[k] < keep_out.1[k]);
                         if !inside {
                             break [r3(p[0]), r3(p[1])];
@@ -657,7 +692,12 @@ fn two_arrays(opts: &PresetOptions, seed: u64) -> SimConfig {
             .collect();
         let crosses = speakers.iter().any(|s| {
             s.path.windows(2).any(|w| {
-                segment_hits_box([w[0][1], w[0][2]], [w[1][1], w[1][2]], keep_out.0, keep_out.1)
+                segment_hits_box(
+                    [w[0][1], w[0][2]],
+                    [w[1][1], w[1][2]],
+                    keep_out.0,
+                    keep_out.1,
+                )
             })
         });
         if !crosses && min_separation(&speakers, d) >= 0.6 {
@@ -692,7 +732,11 @@ pub(crate) fn single(opts: &PresetOptions, seed: u64) -> SimConfig {
         id: None,
         enter_s: 0.0,
         exit_s: None,
-        mouth_height_m: r3(if standing { u(&mut rng, 1.5, 1.75) } else { u(&mut rng, 1.1, 1.3) }),
+        mouth_height_m: r3(if standing {
+            u(&mut rng, 1.5, 1.75)
+        } else {
+            u(&mut rng, 1.1, 1.3)
+        }),
         path,
         sway_m: 0.015,
         facing: FacingConfig {
@@ -736,7 +780,10 @@ mod tests {
             speakers: Some(2),
             ..Default::default()
         };
-        assert_eq!(SimConfig::preset("uca8", &two, 1).unwrap().speakers.len(), 2);
+        assert_eq!(
+            SimConfig::preset("uca8", &two, 1).unwrap().speakers.len(),
+            2
+        );
     }
 
     #[test]

@@ -194,6 +194,11 @@ impl Renderer {
                 continue;
             }
             time[self.window.len()..].iter_mut().for_each(|v| *v = 0.0);
+            // A convolution is causal and finite: keep only the span the segment can reach, so
+            // that FFT round-off never leaks before the sound starts or after it has died out.
+            let first = time.iter().position(|v| *v != 0.0).unwrap_or(0);
+            let last = time.iter().rposition(|v| *v != 0.0).unwrap_or(0);
+            let span = (last + self.settings.response_len).min(self.nfft);
             let pos = position(centre as f64 / fs);
             self.update(&mut state, &pos, &mut resp_buf, &mut scratch_f);
             if self
@@ -203,14 +208,13 @@ impl Renderer {
             {
                 continue;
             }
-            let span = 2 * hop + self.settings.response_len - 1;
             for (m, o) in out.iter_mut().enumerate() {
                 for ((p, s), h) in prod.iter_mut().zip(&seg_spec).zip(&state.spectra[m]) {
                     *p = s * h;
                 }
                 prod[0].im = 0.0;
-                if let Some(last) = prod.last_mut() {
-                    last.im = 0.0;
+                if let Some(top) = prod.last_mut() {
+                    top.im = 0.0;
                 }
                 if self
                     .inverse
@@ -219,7 +223,7 @@ impl Renderer {
                 {
                     continue;
                 }
-                for (i, v) in time[..span.min(self.nfft)].iter().enumerate() {
+                for (i, v) in time[..span].iter().enumerate().skip(first) {
                     let n = start + i as isize;
                     if n >= 0 && (n as usize) < o.len() {
                         o[n as usize] += v * scale;
@@ -265,7 +269,9 @@ impl Renderer {
                 .process_with_scratch(buf, &mut state.spectra[m], scratch)
                 .is_err()
             {
-                state.spectra[m].iter_mut().for_each(|v| *v = Complex::default());
+                state.spectra[m]
+                    .iter_mut()
+                    .for_each(|v| *v = Complex::default());
             }
         }
     }
@@ -342,7 +348,11 @@ mod tests {
         r.render(&x, &|_| pos, &mut out, &mut || {});
         for (o, h) in out.iter().zip(r.response_at(&pos)) {
             let want = convolve(&x, &h);
-            let err = o.iter().zip(&want).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let err = o
+                .iter()
+                .zip(&want)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             let peak = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             assert!(err < 1e-9 * peak.max(1e-12), "error {err}, peak {peak}");
         }
@@ -354,7 +364,9 @@ mod tests {
         let hp = Biquad::highpass(2000.0, FS);
         hp.apply(&mut z);
         hp.apply(&mut z);
-        z.chunks(80).map(|c| c.iter().map(|v| v * v).sum()).collect()
+        z.chunks(80)
+            .map(|c| c.iter().map(|v| v * v).sum())
+            .collect()
     }
 
     #[test]
@@ -374,7 +386,10 @@ mod tests {
         let total: f64 = y[4000..].iter().map(|v| v * v).sum::<f64>() / (len - 4000) as f64 * 80.0;
         let smooth = high_band_frames(y);
         let worst = smooth[50..].iter().fold(0.0f64, |m, v| m.max(*v));
-        assert!(worst < 1e-4 * total, "high-band frame energy {worst} vs {total}");
+        assert!(
+            worst < 1e-4 * total,
+            "high-band frame energy {worst} vs {total}"
+        );
 
         // The same path with the response switched abruptly every 50 ms does click, so the
         // measure above would catch a broken cross-fade.

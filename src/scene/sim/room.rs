@@ -132,7 +132,13 @@ impl ShoeboxRoom {
 
     /// Adds the room response from `images` to the microphone at `mic` into `out` (its length
     /// is the response length); taps that would fall past the end are dropped.
-    pub fn add_response(&self, images: &[Image], mic: &Vec3, taps: &FractionalDelay, out: &mut [f64]) {
+    pub fn add_response(
+        &self,
+        images: &[Image],
+        mic: &Vec3,
+        taps: &FractionalDelay,
+        out: &mut [f64],
+    ) {
         let samples_per_metre = self.sample_rate / self.speed_of_sound;
         let half = (FRACTIONAL_TAPS / 2 - 1) as isize;
         let len = out.len() as isize;
@@ -307,7 +313,8 @@ impl Biquad {
         let (mut x1, mut x2, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0);
         for v in x.iter_mut() {
             let x0 = *v;
-            let y0 = self.b[0] * x0 + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
+            let y0 =
+                self.b[0] * x0 + self.b[1] * x1 + self.b[2] * x2 - self.a[0] * y1 - self.a[1] * y2;
             x2 = x1;
             x1 = x0;
             y2 = y1;
@@ -364,10 +371,11 @@ mod tests {
         let mut best = (f64::NEG_INFINITY, 0.0, 0.0);
         let mut tau = guess - 0.5;
         while tau <= guess + 0.5 {
+            let n0 = tau.floor() as usize - 12;
             let (mut hk, mut kk) = (0.0, 0.0);
-            for n in (tau.floor() as usize - 12)..=(tau.floor() as usize + 12) {
-                let k = sinc(n as f64 - tau);
-                hk += h[n] * k;
+            for (i, v) in h[n0..=n0 + 24].iter().enumerate() {
+                let k = sinc((n0 + i) as f64 - tau);
+                hk += v * k;
                 kk += k * k;
             }
             if hk * hk / kk > best.0 {
@@ -398,13 +406,19 @@ mod tests {
             let first = expect.floor() as usize - FRACTIONAL_TAPS / 2;
             assert!(h[..first].iter().all(|v| *v == 0.0));
             let (tau, amp) = fit_impulse(&h, expect);
-            assert!((tau - expect).abs() < 0.01, "delay {tau} vs {expect} samples");
+            assert!(
+                (tau - expect).abs() < 0.01,
+                "delay {tau} vs {expect} samples"
+            );
             // The tap set's DC gain is the path gain; the fitted ideal sinc differs only by
             // the window's taper.
             let gain = 1.0 / (4.0 * PI * r);
             let dc: f64 = h[first..first + FRACTIONAL_TAPS + 2].iter().sum();
             assert!((dc - gain).abs() < 1e-6 * gain, "gain {dc} vs {gain}");
-            assert!((amp - gain).abs() < 0.03 * gain, "fitted gain {amp} vs {gain}");
+            assert!(
+                (amp - gain).abs() < 0.03 * gain,
+                "fitted gain {amp} vs {gain}"
+            );
         }
     }
 
@@ -413,7 +427,11 @@ mod tests {
         let t = FractionalDelay::new();
         let k = t.kernel(0.0);
         for (j, v) in k.iter().enumerate() {
-            let want = if j == FRACTIONAL_TAPS / 2 - 1 { 1.0 } else { 0.0 };
+            let want = if j == FRACTIONAL_TAPS / 2 - 1 {
+                1.0
+            } else {
+                0.0
+            };
             assert!((v - want).abs() < 1e-12, "tap {j}: {v}");
         }
         // Half a sample: symmetric around the centre.

@@ -148,7 +148,10 @@ pub fn speech_intervals(x: &[f64], sample_rate: f64) -> Vec<(f64, f64)> {
     let mut raw: Vec<(f64, f64)> = Vec::new();
     for (i, e) in energies.iter().enumerate() {
         if *e > threshold {
-            let (a, b) = (i as f64 * step, ((i + 1) as f64 * step).min(x.len() as f64 / sample_rate));
+            let (a, b) = (
+                i as f64 * step,
+                ((i + 1) as f64 * step).min(x.len() as f64 / sample_rate),
+            );
             match raw.last_mut() {
                 Some(last) if a - last.1 < 0.2 => last.1 = b,
                 _ => raw.push((a, b)),
@@ -181,11 +184,12 @@ mod tests {
     fn speech_intervals_find_bursts_and_skip_silence() {
         let fs = 1000.0;
         let mut x = vec![0.0; 3000];
-        for n in 500..1200 {
-            x[n] = ((n as f64) * 0.3).sin();
-        }
-        for n in 2000..2600 {
-            x[n] = ((n as f64) * 0.2).sin();
+        for (n, v) in x.iter_mut().enumerate() {
+            *v = match n {
+                500..1200 => (n as f64 * 0.3).sin(),
+                2000..2600 => (n as f64 * 0.2).sin(),
+                _ => 0.0,
+            };
         }
         let iv = speech_intervals(&x, fs);
         assert_eq!(iv.len(), 2, "{iv:?}");

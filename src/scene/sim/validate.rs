@@ -20,7 +20,10 @@ fn check_range(field: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), 
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {
-        Err(err(field, format!("{v}{unit} is not in [{lo}, {hi}]{unit}")))
+        Err(err(
+            field,
+            format!("{v}{unit} is not in [{lo}, {hi}]{unit}"),
+        ))
     }
 }
 
@@ -51,25 +54,55 @@ impl SimConfig {
         for (i, a) in self.arrays.iter().enumerate() {
             let f = format!("arrays[{i}]");
             if a.id.is_empty() || self.arrays[..i].iter().any(|b| b.id == a.id) {
-                return Err(err(format!("{f}.id"), format!("{:?} is empty or not unique", a.id)));
+                return Err(err(
+                    format!("{f}.id"),
+                    format!("{:?} is empty or not unique", a.id),
+                ));
             }
             self.validate_array(&f, &a.geometry)?;
         }
         for (i, c) in self.cameras.iter().enumerate() {
             let f = format!("cameras[{i}]");
             if c.id.is_empty() || self.cameras[..i].iter().any(|b| b.id == c.id) {
-                return Err(err(format!("{f}.id"), format!("{:?} is empty or not unique", c.id)));
+                return Err(err(
+                    format!("{f}.id"),
+                    format!("{:?} is empty or not unique", c.id),
+                ));
             }
             self.validate_camera(&f, c)?;
         }
         let d = &self.detector;
-        check_range("detector.detection_probability", d.detection_probability, 0.0, 1.0, "")?;
-        check_range("detector.clutter_per_frame", d.clutter_per_frame, 0.0, 50.0, "")?;
-        check_range("detector.point_sigma_px", d.point_sigma_px, 0.0, 200.0, " px")?;
+        check_range(
+            "detector.detection_probability",
+            d.detection_probability,
+            0.0,
+            1.0,
+            "",
+        )?;
+        check_range(
+            "detector.clutter_per_frame",
+            d.clutter_per_frame,
+            0.0,
+            50.0,
+            "",
+        )?;
+        check_range(
+            "detector.point_sigma_px",
+            d.point_sigma_px,
+            0.0,
+            200.0,
+            " px",
+        )?;
         check_range("detector.max_yaw_deg", d.max_yaw_deg, 1.0, 180.0, " deg")?;
         check_range("detector.face_width_m", d.face_width_m, 0.01, 1.0, " m")?;
         check_range("detector.face_height_m", d.face_height_m, 0.01, 1.0, " m")?;
-        check_range("detector.face_above_mouth_m", d.face_above_mouth_m, -0.5, 0.5, " m")?;
+        check_range(
+            "detector.face_above_mouth_m",
+            d.face_above_mouth_m,
+            -0.5,
+            0.5,
+            " m",
+        )?;
         if self.speakers.is_empty() {
             return Err(err("speakers", "must list at least one talker"));
         }
@@ -80,21 +113,39 @@ impl SimConfig {
             if let Some(id) = &s.id
                 && self.speakers[..i].iter().any(|o| o.id.as_ref() == Some(id))
             {
-                return Err(err(format!("speakers[{i}].id"), format!("{id:?} is not unique")));
+                return Err(err(
+                    format!("speakers[{i}].id"),
+                    format!("{id:?} is not unique"),
+                ));
             }
         }
         check_range("noise.snr_db", self.noise.snr_db, -20.0, 120.0, " dB")?;
         if let Some(p) = &self.noise.point {
             self.check_inside("noise.point.position", p.position, 0.0)?;
             check_range("noise.point.snr_db", p.snr_db, -20.0, 120.0, " dB")?;
-            check_range("noise.point.hum_hz", p.hum_hz, 0.0, 0.45 * self.sample_rate as f64, " Hz")?;
-            check_range("noise.point.corner_hz", p.corner_hz, 10.0, 0.45 * self.sample_rate as f64, " Hz")?;
+            check_range(
+                "noise.point.hum_hz",
+                p.hum_hz,
+                0.0,
+                0.45 * self.sample_rate as f64,
+                " Hz",
+            )?;
+            check_range(
+                "noise.point.corner_hz",
+                p.corner_hz,
+                10.0,
+                0.45 * self.sample_rate as f64,
+                " Hz",
+            )?;
         }
         if let Some(r) = &self.region {
             check_finite("region.min", &r.min)?;
             check_finite("region.max", &r.max)?;
             if (0..3).any(|k| r.max[k] <= r.min[k]) {
-                return Err(err("region.max", "must be greater than region.min on every axis"));
+                return Err(err(
+                    "region.max",
+                    "must be greater than region.min on every axis",
+                ));
             }
         }
         if let Some(dir) = &self.speech_dir
@@ -111,7 +162,13 @@ impl SimConfig {
             check_range(&format!("room.size_m[{k}]"), *s, 1.0, 100.0, " m")?;
         }
         check_range("room.rt60_s", r.rt60_s, 0.01, 3.0, " s")?;
-        check_range("room.update_interval_s", r.update_interval_s, 0.002, 0.1, " s")?;
+        check_range(
+            "room.update_interval_s",
+            r.update_interval_s,
+            0.002,
+            0.1,
+            " s",
+        )?;
         check_range("room.early_s", r.early_s, 0.0, 1.0, " s")?;
         check_range("room.late_update_m", r.late_update_m, 0.0, 100.0, " m")?;
         check_range(
@@ -159,9 +216,18 @@ impl SimConfig {
             } => {
                 self.check_inside(&format!("{f}.geometry.linear.centre"), *centre, 0.0)?;
                 if *count < 1 {
-                    return Err(err(format!("{f}.geometry.linear.count"), "must be at least 1"));
+                    return Err(err(
+                        format!("{f}.geometry.linear.count"),
+                        "must be at least 1",
+                    ));
                 }
-                check_range(&format!("{f}.geometry.linear.spacing_m"), *spacing_m, 1e-3, 10.0, " m")?;
+                check_range(
+                    &format!("{f}.geometry.linear.spacing_m"),
+                    *spacing_m,
+                    1e-3,
+                    10.0,
+                    " m",
+                )?;
                 check_finite(&format!("{f}.geometry.linear.axis"), axis)?;
                 if axis.iter().map(|v| v * v).sum::<f64>() < 1e-12 {
                     return Err(err(format!("{f}.geometry.linear.axis"), "must not be zero"));
@@ -175,14 +241,29 @@ impl SimConfig {
             } => {
                 self.check_inside(&format!("{f}.geometry.circular.centre"), *centre, 0.0)?;
                 if *count < 1 {
-                    return Err(err(format!("{f}.geometry.circular.count"), "must be at least 1"));
+                    return Err(err(
+                        format!("{f}.geometry.circular.count"),
+                        "must be at least 1",
+                    ));
                 }
-                check_range(&format!("{f}.geometry.circular.radius_m"), *radius_m, 1e-3, 10.0, " m")?;
-                check_finite(&format!("{f}.geometry.circular.start_azimuth_deg"), &[*start_azimuth_deg])?;
+                check_range(
+                    &format!("{f}.geometry.circular.radius_m"),
+                    *radius_m,
+                    1e-3,
+                    10.0,
+                    " m",
+                )?;
+                check_finite(
+                    &format!("{f}.geometry.circular.start_azimuth_deg"),
+                    &[*start_azimuth_deg],
+                )?;
             }
             ArrayGeometry::Custom { mics } => {
                 if mics.is_empty() {
-                    return Err(err(format!("{f}.geometry.custom.mics"), "must not be empty"));
+                    return Err(err(
+                        format!("{f}.geometry.custom.mics"),
+                        "must not be empty",
+                    ));
                 }
             }
         }
@@ -194,7 +275,10 @@ impl SimConfig {
 
     fn validate_camera(&self, f: &str, c: &CameraConfig) -> Result<(), SimError> {
         if c.width < 16 || c.height < 16 {
-            return Err(err(format!("{f}.width"), "width and height must be at least 16 px"));
+            return Err(err(
+                format!("{f}.width"),
+                "width and height must be at least 16 px",
+            ));
         }
         check_range(&format!("{f}.fps"), c.fps, 0.1, 240.0, " fps")?;
         check_range(&format!("{f}.start_s"), c.start_s, 0.0, 3600.0, " s")?;
@@ -229,16 +313,34 @@ impl SimConfig {
         if let Some(id) = &s.id
             && (id.is_empty() || id.contains(['/', '\\']))
         {
-            return Err(err(format!("{f}.id"), "must be non-empty and without slashes"));
+            return Err(err(
+                format!("{f}.id"),
+                "must be non-empty and without slashes",
+            ));
         }
-        check_range(&format!("{f}.enter_s"), s.enter_s, 0.0, self.duration_s - 1e-3, " s")?;
+        check_range(
+            &format!("{f}.enter_s"),
+            s.enter_s,
+            0.0,
+            self.duration_s - 1e-3,
+            " s",
+        )?;
         if let Some(x) = s.exit_s
             && !(x.is_finite() && x > s.enter_s)
         {
-            return Err(err(format!("{f}.exit_s"), format!("{x} s must be after enter_s")));
+            return Err(err(
+                format!("{f}.exit_s"),
+                format!("{x} s must be after enter_s"),
+            ));
         }
         let top = self.room.size_m[2] - WALL_MARGIN_M;
-        check_range(&format!("{f}.mouth_height_m"), s.mouth_height_m, 0.3, top.min(2.3), " m")?;
+        check_range(
+            &format!("{f}.mouth_height_m"),
+            s.mouth_height_m,
+            0.3,
+            top.min(2.3),
+            " m",
+        )?;
         if s.path.is_empty() {
             return Err(err(format!("{f}.path"), "needs at least one keyframe"));
         }
@@ -264,19 +366,64 @@ impl SimConfig {
         }
         for (k, a) in fc.away_s.iter().enumerate() {
             if !(a[0].is_finite() && a[1].is_finite() && a[1] > a[0]) {
-                return Err(err(format!("{f}.facing.away_s[{k}]"), "must be [start, end] with start < end"));
+                return Err(err(
+                    format!("{f}.facing.away_s[{k}]"),
+                    "must be [start, end] with start < end",
+                ));
             }
         }
-        check_range(&format!("{f}.facing.jitter_deg"), fc.jitter_deg, 0.0, 90.0, " deg")?;
+        check_range(
+            &format!("{f}.facing.jitter_deg"),
+            fc.jitter_deg,
+            0.0,
+            90.0,
+            " deg",
+        )?;
         let v = &s.voice;
         let nyq = 0.5 * self.sample_rate as f64;
         check_range(&format!("{f}.voice.f0_hz"), v.f0_hz, 50.0, 500.0, " Hz")?;
-        check_range(&format!("{f}.voice.f0_range_st"), v.f0_range_st, 0.0, 24.0, " st")?;
-        check_range(&format!("{f}.voice.formant_scale"), v.formant_scale, 0.7, 1.5, "")?;
-        check_range(&format!("{f}.voice.syllable_rate_hz"), v.syllable_rate_hz, 1.0, 10.0, " Hz")?;
-        check_range(&format!("{f}.voice.level_db"), v.level_db, -40.0, 20.0, " dB")?;
-        check_range(&format!("{f}.voice.breathiness"), v.breathiness, 0.0, 1.0, "")?;
-        check_range(&format!("{f}.voice.open_quotient"), v.open_quotient, 0.3, 0.9, "")?;
+        check_range(
+            &format!("{f}.voice.f0_range_st"),
+            v.f0_range_st,
+            0.0,
+            24.0,
+            " st",
+        )?;
+        check_range(
+            &format!("{f}.voice.formant_scale"),
+            v.formant_scale,
+            0.7,
+            1.5,
+            "",
+        )?;
+        check_range(
+            &format!("{f}.voice.syllable_rate_hz"),
+            v.syllable_rate_hz,
+            1.0,
+            10.0,
+            " Hz",
+        )?;
+        check_range(
+            &format!("{f}.voice.level_db"),
+            v.level_db,
+            -40.0,
+            20.0,
+            " dB",
+        )?;
+        check_range(
+            &format!("{f}.voice.breathiness"),
+            v.breathiness,
+            0.0,
+            1.0,
+            "",
+        )?;
+        check_range(
+            &format!("{f}.voice.open_quotient"),
+            v.open_quotient,
+            0.3,
+            0.9,
+            "",
+        )?;
         if nyq < 4000.0 {
             return Err(err("sample_rate", "synthetic voices need at least 8000 Hz"));
         }
@@ -291,7 +438,10 @@ impl SimConfig {
             if p[0] < s.enter_s || p[1] > exit + 1e-9 {
                 return Err(err(
                     pf,
-                    format!("{p:?} is not within the talker's presence [{}, {exit}] s", s.enter_s),
+                    format!(
+                        "{p:?} is not within the talker's presence [{}, {exit}] s",
+                        s.enter_s
+                    ),
                 ));
             }
             if k > 0 && p[0] < sp.phrases[k - 1][1] {
@@ -299,7 +449,8 @@ impl SimConfig {
             }
         }
         for (name, r) in [("phrase_s", sp.phrase_s), ("pause_s", sp.pause_s)] {
-            if !(r[0].is_finite() && r[1].is_finite() && r[0] > 0.0 && r[1] >= r[0] && r[1] <= 60.0) {
+            if !(r[0].is_finite() && r[1].is_finite() && r[0] > 0.0 && r[1] >= r[0] && r[1] <= 60.0)
+            {
                 return Err(err(
                     format!("{f}.speech.{name}"),
                     format!("{r:?} must be [min, max] with 0 < min <= max <= 60"),

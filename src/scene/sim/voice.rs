@@ -171,7 +171,7 @@ fn draw_onset<R: Rng + ?Sized>(voice: &VoiceConfig, first: bool, fs: f64, rng: &
     let cap = |f: f64| f.min(0.42 * fs);
     let u: f64 = rng.random_range(0.0..1.0);
     // Phrases begin with sound, so the first syllable never starts with a silent closure.
-    let u = if first && u >= 0.55 && u < 0.75 {
+    let u = if first && (0.55..0.75).contains(&u) {
         u - 0.2
     } else {
         u
@@ -244,8 +244,8 @@ impl BandPass {
         let w0 = 2.0 * PI * centre / fs;
         let alpha = w0.sin() / (2.0 * q);
         let a0 = 1.0 + alpha;
-        let y = (alpha * x - alpha * self.x2 + 2.0 * w0.cos() * self.y1 - (1.0 - alpha) * self.y2)
-            / a0;
+        let y =
+            (alpha * x - alpha * self.x2 + 2.0 * w0.cos() * self.y1 - (1.0 - alpha) * self.y2) / a0;
         self.x2 = self.x1;
         self.x1 = x;
         self.y2 = self.y1;
@@ -380,7 +380,11 @@ fn render_phrase<R: Rng + ?Sized>(
         }
         pitch_st += k_pitch * (st_target - pitch_st);
         av += k_amp * (av_t - av);
-        an += if an_t > an { an_t - an } else { k_amp * (an_t - an) };
+        an += if an_t > an {
+            an_t - an
+        } else {
+            k_amp * (an_t - an)
+        };
         ah += k_amp * (ah_t - ah);
 
         // Glottal source: one period at a time, with jitter and shimmer drawn per period.
@@ -455,7 +459,11 @@ mod tests {
         let phrases = [(0.5, 2.0), (2.6, 4.0)];
         let x = synthesize(&voice(120.0, 1.0), &phrases, fs, 64000, &mut rng);
         assert!(x.iter().all(|v| v.is_finite()));
-        let inside = |n: usize| phrases.iter().any(|&(a, b)| n >= (a * fs) as usize && n < (b * fs) as usize);
+        let inside = |n: usize| {
+            phrases
+                .iter()
+                .any(|&(a, b)| n >= (a * fs) as usize && n < (b * fs) as usize)
+        };
         assert!((0..x.len()).filter(|&n| !inside(n)).all(|n| x[n] == 0.0));
         let (e, c) = (0..x.len())
             .filter(|&n| inside(n))
@@ -475,7 +483,10 @@ mod tests {
     /// Median F0 (Hz) of the voiced 40 ms frames of `x`, by normalised autocorrelation.
     pub(crate) fn median_f0(x: &[f64], fs: f64) -> f64 {
         let frame = (0.04 * fs) as usize;
-        let energies: Vec<f64> = x.chunks(frame).map(|c| c.iter().map(|v| v * v).sum()).collect();
+        let energies: Vec<f64> = x
+            .chunks(frame)
+            .map(|c| c.iter().map(|v| v * v).sum())
+            .collect();
         let loud = energies.iter().fold(0.0f64, |m, v| m.max(*v));
         let (min_lag, max_lag) = ((fs / 400.0) as usize, (fs / 60.0) as usize);
         let mut f0s = Vec::new();
@@ -504,14 +515,29 @@ mod tests {
     fn voices_have_distinct_pitch_near_their_configured_f0() {
         let fs = 16000.0;
         let mut medians = Vec::new();
-        for (k, (f0, scale)) in [(105.0, 1.0), (150.0, 1.05), (215.0, 1.17)].into_iter().enumerate() {
+        for (k, (f0, scale)) in [(105.0, 1.0), (150.0, 1.05), (215.0, 1.17)]
+            .into_iter()
+            .enumerate()
+        {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(10 + k as u64);
-            let x = synthesize(&voice(f0, scale), &[(0.0, 3.0), (3.5, 6.0)], fs, 96000, &mut rng);
+            let x = synthesize(
+                &voice(f0, scale),
+                &[(0.0, 3.0), (3.5, 6.0)],
+                fs,
+                96000,
+                &mut rng,
+            );
             let m = median_f0(&x, fs);
-            assert!((m / f0 - 1.0).abs() < 0.15, "median F0 {m} for a {f0} Hz voice");
+            assert!(
+                (m / f0 - 1.0).abs() < 0.15,
+                "median F0 {m} for a {f0} Hz voice"
+            );
             println!("F0 {f0} Hz: median {m:.1} Hz");
             medians.push(m);
         }
-        assert!(medians[1] / medians[0] > 1.2 && medians[2] / medians[1] > 1.2, "{medians:?}");
+        assert!(
+            medians[1] / medians[0] > 1.2 && medians[2] / medians[1] > 1.2,
+            "{medians:?}"
+        );
     }
 }
