@@ -54,7 +54,7 @@ mod tests {
     fn recovers_the_decay_of_an_exponential_envelope() {
         // Noise-free exponential: amplitude falls 60 dB in 0.4 s.
         let fs = 16000.0;
-        let h: Vec<f64> = (0..16000)
+        let h: Vec<f64> = (0..16000usize)
             .map(|n| {
                 let t = n as f64 / fs;
                 10f64.powf(-3.0 * t / 0.4) * if n.is_multiple_of(2) { 1.0 } else { -1.0 }
