@@ -403,3 +403,37 @@ pub struct RegionConfig {
     /// Upper corner.
     pub max: [f64; 3],
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn configurations_round_trip_through_json_and_toml() {
+        let cfg =
+            SimConfig::preset("two-arrays", &super::super::PresetOptions::default(), 3).unwrap();
+        let json = serde_json::to_string(&cfg).unwrap();
+        assert_eq!(serde_json::from_str::<SimConfig>(&json).unwrap(), cfg);
+        let toml_text = toml::to_string(&cfg).unwrap();
+        assert_eq!(toml::from_str::<SimConfig>(&toml_text).unwrap(), cfg);
+        // Missing fields take their defaults; unknown ones are errors that name them.
+        let partial: SimConfig = serde_json::from_str(r#"{"duration_s": 3.0}"#).unwrap();
+        assert_eq!(partial.room, SimConfig::default().room);
+        let e = serde_json::from_str::<SimConfig>(r#"{"room": {"rt6": 0.3}}"#).unwrap_err();
+        assert!(e.to_string().contains("rt6"), "{e}");
+    }
+
+    #[test]
+    fn the_schema_documents_every_field() {
+        let schema = serde_json::to_value(schemars::schema_for!(SimConfig)).unwrap();
+        let text = schema.to_string();
+        for needle in [
+            "rt60_s",
+            "Target reverberation time",
+            "clutter_per_frame",
+            "snr_db",
+        ] {
+            assert!(text.contains(needle), "{needle} missing from the schema");
+        }
+    }
+}
