@@ -22,10 +22,12 @@ mod presets;
 pub mod render;
 pub mod room;
 pub mod speech_files;
+mod syllables;
+mod talkers;
 mod validate;
 pub mod voice;
 
-use std::path::{Path as FsPath, PathBuf};
+use std::path::PathBuf;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -43,9 +45,10 @@ pub use validate::{MAX_SPEED_MPS, WALL_MARGIN_M};
 
 use calibrate::reverberation_for;
 use detect::FrameClock;
-use motion::{FacingPlan, Motion, Path};
+use motion::Motion;
 use render::{RenderSettings, Renderer};
 use room::ShoeboxRoom;
+use talkers::{Talker, make_talkers, trajectory};
 
 /// Truth trajectories are sampled at this step (s).
 pub const TRUTH_STEP_S: f64 = 0.02;
@@ -101,14 +104,6 @@ pub fn simulate(cfg: &SimConfig, seed: u64) -> Result<Scene, SimError> {
     simulate_with_progress(cfg, seed, &mut |_, _| {})
 }
 
-/// One talker, ready to render.
-struct Talker {
-    id: String,
-    motion: Motion,
-    dry: Vec<f64>,
-    active: Vec<(f64, f64)>,
-}
-
 /// As [`simulate`], calling `progress(done, total)` as rendering advances.
 pub fn simulate_with_progress(
     cfg: &SimConfig,
@@ -117,105 +112,32 @@ pub fn simulate_with_progress(
 ) -> Result<Scene, SimError> {
     cfg.validate()?;
     let layout = layout::build(cfg)?;
-    let fs = cfg.sample_rate as f64;
-    let len = (cfg.duration_s * fs).round() as usize;
+    let len = (cfg.duration_s * cfg.sample_rate as f64).round() as usize;
     let mics: Vec<Vec3> = layout
         .arrays
         .iter()
         .flat_map(|a| a.mics.iter().copied())
         .collect();
     let talkers = make_talkers(cfg, seed, &layout, len)?;
-
-    // Acoustics: tune the walls on a source at the region centre heard at the reference mic.
-    let size = Vec3::from(cfg.room.size_m);
-    let probe = layout.region.map_or(size * 0.5, |r| r.center());
-    let rev = reverberation_for(&size, cfg.room.rt60_s, &probe, &mics[0], cfg.speed_of_sound)
-        .map_err(|message| SimError::Config {
-            field: "room.rt60_s".into(),
-            message,
-        })?;
-    let room = ShoeboxRoom::new(size, rev.absorption, cfg.speed_of_sound, fs).map_err(|m| {
-        SimError::Config {
-            field: "room".into(),
-            message: m,
-        }
-    })?;
-    let response_s = cfg.room.response_s.unwrap_or(rev.response_s);
-    let renderer = Renderer::new(
-        room,
-        mics.clone(),
-        RenderSettings {
-            hop: ((cfg.room.update_interval_s * fs).round() as usize).max(1),
-            response_len: ((response_s * fs).ceil() as usize).max(1),
-            early_len: (cfg.room.early_s * fs).round() as usize,
-            late_update_m: cfg.room.late_update_m,
-            highpass_hz: cfg.room.highpass_hz,
-        },
-    );
-    let units_per = renderer.segments(len);
-    let total = units_per * (talkers.len() + usize::from(cfg.noise.point.is_some()));
+    let renderer = acoustics(cfg, layout.region, &mics)?;
+    let sources = talkers.len() + usize::from(cfg.noise.point.is_some());
+    let total = renderer.segments(len) * sources;
     let mut done = 0usize;
     progress(done, total);
-
-    let mut mixture = vec![vec![0.0; len]; mics.len()];
-    let mut images = Vec::with_capacity(talkers.len());
-    for t in &talkers {
-        let mut out = vec![vec![0.0; len]; mics.len()];
-        renderer.render(
-            &t.dry,
-            &|time| t.motion.position(time),
-            &mut out,
-            &mut || {
-                done += 1;
-                progress(done, total);
-            },
-        );
-        for (m, o) in mixture.iter_mut().zip(&out) {
-            m.iter_mut().zip(o).for_each(|(a, b)| *a += b);
-        }
-        images.push(out.swap_remove(0));
-    }
-
-    // Noise, against the speech power at the reference microphone while anyone talks.
-    let speech_ref: Vec<f64> = (0..len)
-        .map(|n| images.iter().map(|s| s[n]).sum())
-        .collect();
-    let any_active: Vec<(f64, f64)> = talkers.iter().flat_map(|t| t.active.clone()).collect();
-    let speech_power = noise::active_power(&speech_ref, &any_active, fs);
-    if let Some(p) = &cfg.noise.point {
-        let dry = noise::fan(
-            len,
-            fs,
-            p.hum_hz,
-            p.corner_hz,
-            &mut rng_for(seed, streams::POINT, 0),
-        );
-        let mut out = vec![vec![0.0; len]; mics.len()];
-        let at = Vec3::from(p.position);
-        renderer.render(&dry, &|_| at, &mut out, &mut || {
-            done += 1;
-            progress(done, total);
-        });
-        let level = noise::mean_power(&out[0]);
-        let target = speech_power / 10f64.powf(p.snr_db / 10.0);
-        let g = if level > 0.0 {
-            (target / level).sqrt()
-        } else {
-            0.0
-        };
-        for (m, o) in mixture.iter_mut().zip(&out) {
-            m.iter_mut().zip(o).for_each(|(a, b)| *a += g * b);
-        }
-    }
-    let sensor_power = speech_power / 10f64.powf(cfg.noise.snr_db / 10.0);
-    for (i, m) in mixture.iter_mut().enumerate() {
-        let w = noise::white(
-            len,
-            sensor_power,
-            &mut rng_for(seed, streams::SENSOR, i as u64),
-        );
-        m.iter_mut().zip(&w).for_each(|(a, b)| *a += b);
-    }
+    let mut tick = || {
+        done += 1;
+        progress(done, total);
+    };
+    let (mut mixture, images) = render_talkers(&renderer, &talkers, len, &mut tick);
+    add_noise(
+        cfg,
+        seed,
+        &renderer,
+        &talkers,
+        &images,
+        &mut mixture,
+        &mut tick,
+    );
 
     // One common gain puts the mixture's peak at the configured level.
     let peak = mixture
@@ -239,24 +161,7 @@ pub fn simulate_with_progress(
             samples[n * mics.len() + c] = (v * gain) as f32;
         }
     }
-
-    let clocks: Vec<FrameClock> = cfg
-        .cameras
-        .iter()
-        .map(|c| FrameClock {
-            fps: c.fps,
-            start_s: c.start_s,
-        })
-        .collect();
-    let motions: Vec<Motion> = talkers.iter().map(|t| t.motion.clone()).collect();
-    let detections = detect::detect(
-        &cfg.detector,
-        &layout.cameras,
-        &clocks,
-        &motions,
-        cfg.duration_s,
-        &mut rng_for(seed, streams::DETECT, 0),
-    );
+    let detections = camera_frames(cfg, seed, &layout.cameras, &talkers);
     let sources = talkers
         .into_iter()
         .zip(images)
@@ -281,121 +186,124 @@ pub fn simulate_with_progress(
     })
 }
 
-/// The talkers' motion, dry signals and speech intervals.
-fn make_talkers(
-    cfg: &SimConfig,
-    seed: u64,
-    layout: &crate::geometry::Layout,
-    len: usize,
-) -> Result<Vec<Talker>, SimError> {
+/// The room and its renderer; the walls are tuned on a source at the centre of `region` heard
+/// at the reference microphone `mics[0]`.
+fn acoustics(cfg: &SimConfig, region: Option<Aabb>, mics: &[Vec3]) -> Result<Renderer, SimError> {
     let fs = cfg.sample_rate as f64;
-    let d = cfg.duration_s;
     let size = Vec3::from(cfg.room.size_m);
-    // Sway never takes a mouth closer to a wall than a path may go.
-    let m = WALL_MARGIN_M;
-    let bounds = Aabb::new(Vec3::new(m, m, 0.3), size - Vec3::new(m, m, m)).map_err(|e| {
-        SimError::Config {
-            field: "room.size_m".into(),
-            message: e.message,
-        }
-    })?;
-    let default_look = layout
-        .cameras
-        .first()
-        .map(|c| c.centre())
-        .unwrap_or_else(|| layout.arrays[0].centroid());
-    let files = match &cfg.speech_dir {
-        Some(dir) => {
-            let files = speech_files::load_speech(FsPath::new(dir), cfg.sample_rate)?;
-            if files.len() < cfg.speakers.len() {
-                return Err(SimError::Speech {
-                    path: PathBuf::from(dir),
-                    message: format!(
-                        "holds {} WAV file(s) but the scene has {} talkers (one file each)",
-                        files.len(),
-                        cfg.speakers.len()
-                    ),
-                });
-            }
-            Some(files)
-        }
-        None => None,
+    let probe = region.map_or(size * 0.5, |r| r.center());
+    let config_error = |message: String| SimError::Config {
+        field: "room.rt60_s".into(),
+        message,
     };
-    let mut talkers = Vec::with_capacity(cfg.speakers.len());
-    for (i, s) in cfg.speakers.iter().enumerate() {
-        let idx = i as u64;
-        let exit = s.exit_s.unwrap_or(d).min(d);
-        let plan = FacingPlan {
-            look_at: s.facing.look_at.unwrap_or([default_look.x, default_look.y]),
-            follow_motion: s.facing.follow_motion,
-            away: s.facing.away_s.iter().map(|a| (a[0], a[1])).collect(),
-            jitter_rad: s.facing.jitter_deg.to_radians(),
-        };
-        let motion = Motion::new(
-            s.enter_s,
-            exit,
-            Path::from_keyframes(&s.path),
-            s.mouth_height_m,
-            s.sway_m,
-            bounds,
-            &plan,
-            &mut rng_for(seed, streams::MOTION, idx),
-        );
-        let phrases: Vec<(f64, f64)> = if s.speech.phrases.is_empty() {
-            let from = s.enter_s + s.speech.lead_s;
-            let mut rng = rng_for(seed, streams::PHRASES, idx);
-            presets::draw_phrases(from, exit - 0.1, &s.speech, &mut rng)
-                .into_iter()
-                .map(|p| (p[0], p[1]))
-                .collect()
-        } else {
-            s.speech
-                .phrases
-                .iter()
-                .map(|p| (p[0], p[1].min(d)))
-                .collect()
-        };
-        let (dry, active) = match &files {
-            Some(files) => {
-                let dry = speech_files::lay_out(&files[i].samples, &phrases, fs, len);
-                let active = speech_files::speech_intervals(&dry, fs);
-                (dry, active)
-            }
-            None => {
-                let mut rng = rng_for(seed, streams::VOICE, idx);
-                let dry = voice::synthesize(&s.voice, &phrases, fs, len, &mut rng);
-                (dry, phrases)
-            }
-        };
-        let id = s.id.clone().unwrap_or_else(|| format!("s{}", i + 1));
-        if talkers.iter().any(|t: &Talker| t.id == id) {
-            return Err(SimError::Config {
-                field: format!("speakers[{i}].id"),
-                message: format!("{id:?} is already used by another talker"),
-            });
-        }
-        talkers.push(Talker {
-            id,
-            motion,
-            dry,
-            active,
-        });
-    }
-    Ok(talkers)
+    let rev = reverberation_for(&size, cfg.room.rt60_s, &probe, &mics[0], cfg.speed_of_sound)
+        .map_err(config_error)?;
+    let room =
+        ShoeboxRoom::new(size, rev.absorption, cfg.speed_of_sound, fs).map_err(config_error)?;
+    let response_s = cfg.room.response_s.unwrap_or(rev.response_s);
+    Ok(Renderer::new(
+        room,
+        mics.to_vec(),
+        RenderSettings {
+            hop: ((cfg.room.update_interval_s * fs).round() as usize).max(1),
+            response_len: ((response_s * fs).ceil() as usize).max(1),
+            early_len: (cfg.room.early_s * fs).round() as usize,
+            late_update_m: cfg.room.late_update_m,
+            highpass_hz: cfg.room.highpass_hz,
+        },
+    ))
 }
 
-/// The mouth positions every [`TRUTH_STEP_S`] from entry to exit (both included).
-fn trajectory(m: &Motion) -> Vec<(f64, Vec3)> {
-    let mut out = Vec::new();
-    let mut j = 0usize;
-    loop {
-        let t = m.enter_s + j as f64 * TRUTH_STEP_S;
-        if t >= m.exit_s - 1e-6 {
-            break;
+/// Renders every talker: the mixture at each microphone, and each talker's image at the
+/// reference microphone.
+fn render_talkers(
+    renderer: &Renderer,
+    talkers: &[Talker],
+    len: usize,
+    tick: &mut dyn FnMut(),
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let channels = renderer.channels();
+    let mut mixture = vec![vec![0.0; len]; channels];
+    let mut images = Vec::with_capacity(talkers.len());
+    for t in talkers {
+        let mut out = vec![vec![0.0; len]; channels];
+        renderer.render(&t.dry, &|time| t.motion.position(time), &mut out, tick);
+        for (m, o) in mixture.iter_mut().zip(&out) {
+            m.iter_mut().zip(o).for_each(|(a, b)| *a += b);
         }
-        out.push((t, m.position(t)));
-        j += 1;
+        images.push(out.swap_remove(0));
     }
-    out.push((m.exit_s, m.position(m.exit_s)));
-    out
+    (mixture, images)
+}
+
+/// Adds the point noise source and the sensor noise at their SNRs (see [`noise`] for the
+/// definition) to the mixture.
+fn add_noise(
+    cfg: &SimConfig,
+    seed: u64,
+    renderer: &Renderer,
+    talkers: &[Talker],
+    images: &[Vec<f64>],
+    mixture: &mut [Vec<f64>],
+    tick: &mut dyn FnMut(),
+) {
+    let fs = cfg.sample_rate as f64;
+    let len = mixture.first().map_or(0, |m| m.len());
+    let speech_ref: Vec<f64> = (0..len)
+        .map(|n| images.iter().map(|s| s[n]).sum())
+        .collect();
+    let any_active: Vec<(f64, f64)> = talkers.iter().flat_map(|t| t.active.clone()).collect();
+    let speech_power = noise::active_power(&speech_ref, &any_active, fs);
+    if let Some(p) = &cfg.noise.point {
+        let mut rng = rng_for(seed, streams::POINT, 0);
+        let dry = noise::fan(len, fs, p.hum_hz, p.corner_hz, &mut rng);
+        let mut out = vec![vec![0.0; len]; mixture.len()];
+        let at = Vec3::from(p.position);
+        renderer.render(&dry, &|_| at, &mut out, tick);
+        let level = noise::mean_power(&out[0]);
+        let target = speech_power / 10f64.powf(p.snr_db / 10.0);
+        let g = if level > 0.0 {
+            (target / level).sqrt()
+        } else {
+            0.0
+        };
+        for (m, o) in mixture.iter_mut().zip(&out) {
+            m.iter_mut().zip(o).for_each(|(a, b)| *a += g * b);
+        }
+    }
+    let sensor_power = speech_power / 10f64.powf(cfg.noise.snr_db / 10.0);
+    for (i, m) in mixture.iter_mut().enumerate() {
+        let w = noise::white(
+            len,
+            sensor_power,
+            &mut rng_for(seed, streams::SENSOR, i as u64),
+        );
+        m.iter_mut().zip(&w).for_each(|(a, b)| *a += b);
+    }
+}
+
+/// Every camera's detection frames.
+fn camera_frames(
+    cfg: &SimConfig,
+    seed: u64,
+    cameras: &[crate::geometry::Camera],
+    talkers: &[Talker],
+) -> Vec<crate::scene::DetectionFrame> {
+    let clocks: Vec<FrameClock> = cfg
+        .cameras
+        .iter()
+        .map(|c| FrameClock {
+            fps: c.fps,
+            start_s: c.start_s,
+        })
+        .collect();
+    let motions: Vec<Motion> = talkers.iter().map(|t| t.motion.clone()).collect();
+    detect::detect(
+        &cfg.detector,
+        cameras,
+        &clocks,
+        &motions,
+        cfg.duration_s,
+        &mut rng_for(seed, streams::DETECT, 0),
+    )
 }

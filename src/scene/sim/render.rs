@@ -97,6 +97,11 @@ impl Renderer {
         &self.room
     }
 
+    /// Number of microphones (output channels).
+    pub fn channels(&self) -> usize {
+        self.mics.len()
+    }
+
     /// Number of segments (progress units) a signal of `len` samples is rendered in.
     pub fn segments(&self, len: usize) -> usize {
         len.div_ceil(self.settings.hop) + 1
@@ -179,21 +184,9 @@ impl Renderer {
             tick();
             let centre = k * hop;
             let start = centre as isize - hop as isize;
-            // Window the segment; skip silent ones.
-            let mut silent = true;
-            for (i, (v, w)) in time.iter_mut().zip(self.window.iter()).enumerate() {
-                let n = start + i as isize;
-                *v = if n >= 0 && (n as usize) < len {
-                    signal[n as usize] * w
-                } else {
-                    0.0
-                };
-                silent &= *v == 0.0;
-            }
-            if silent {
+            if !self.window_segment(signal, start, &mut time) {
                 continue;
             }
-            time[self.window.len()..].iter_mut().for_each(|v| *v = 0.0);
             // A convolution is causal and finite: keep only the span the segment can reach, so
             // that FFT round-off never leaks before the sound starts or after it has died out.
             let first = time.iter().position(|v| *v != 0.0).unwrap_or(0);
@@ -231,6 +224,21 @@ impl Renderer {
                 }
             }
         }
+    }
+
+    /// Fills `buf` with the Hann-windowed segment of `signal` starting at sample `start` (zero
+    /// padded); false when the segment is silent.
+    fn window_segment(&self, signal: &[f64], start: isize, buf: &mut [f64]) -> bool {
+        let mut sound = false;
+        buf.iter_mut().for_each(|v| *v = 0.0);
+        for (i, (v, w)) in buf.iter_mut().zip(&self.window).enumerate() {
+            let n = start + i as isize;
+            if n >= 0 && (n as usize) < signal.len() {
+                *v = signal[n as usize] * w;
+                sound |= *v != 0.0;
+            }
+        }
+        sound
     }
 
     /// Brings the responses up to date for a source at `pos`.

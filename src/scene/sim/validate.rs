@@ -35,19 +35,89 @@ fn check_finite(field: &str, v: &[f64]) -> Result<(), SimError> {
     }
 }
 
+/// A numeric field with its allowed range and unit.
+type Range<'a> = (&'a str, f64, f64, f64, &'a str);
+
+/// Checks every `(field, value, lo, hi, unit)`; the error names the first value out of range.
+fn check_ranges(prefix: &str, ranges: &[Range]) -> Result<(), SimError> {
+    for &(field, v, lo, hi, unit) in ranges {
+        check_range(&format!("{prefix}{field}"), v, lo, hi, unit)?;
+    }
+    Ok(())
+}
+
 impl SimConfig {
     /// Checks every field; the error names the first bad one.
     pub fn validate(&self) -> Result<(), SimError> {
-        check_range("duration_s", self.duration_s, 0.01, 3600.0, " s")?;
         if !(8000..=96000).contains(&self.sample_rate) {
             return Err(err(
                 "sample_rate",
                 format!("{} Hz is not in [8000, 96000] Hz", self.sample_rate),
             ));
         }
-        check_range("speed_of_sound", self.speed_of_sound, 200.0, 500.0, " m/s")?;
-        check_range("peak_level", self.peak_level, 1e-6, 1.0, "")?;
+        check_ranges(
+            "",
+            &[
+                ("duration_s", self.duration_s, 0.01, 3600.0, " s"),
+                ("speed_of_sound", self.speed_of_sound, 200.0, 500.0, " m/s"),
+                ("peak_level", self.peak_level, 1e-6, 1.0, ""),
+            ],
+        )?;
         self.validate_room()?;
+        self.validate_sensors()?;
+        let d = &self.detector;
+        check_ranges(
+            "detector.",
+            &[
+                (
+                    "detection_probability",
+                    d.detection_probability,
+                    0.0,
+                    1.0,
+                    "",
+                ),
+                ("clutter_per_frame", d.clutter_per_frame, 0.0, 50.0, ""),
+                ("point_sigma_px", d.point_sigma_px, 0.0, 200.0, " px"),
+                ("max_yaw_deg", d.max_yaw_deg, 1.0, 180.0, " deg"),
+                ("face_width_m", d.face_width_m, 0.01, 1.0, " m"),
+                ("face_height_m", d.face_height_m, 0.01, 1.0, " m"),
+                ("face_above_mouth_m", d.face_above_mouth_m, -0.5, 0.5, " m"),
+            ],
+        )?;
+        if self.speakers.is_empty() {
+            return Err(err("speakers", "must list at least one talker"));
+        }
+        for (i, s) in self.speakers.iter().enumerate() {
+            let f = format!("speakers[{i}]");
+            if let Some(id) = &s.id
+                && self.speakers[..i].iter().any(|o| o.id.as_ref() == Some(id))
+            {
+                return Err(err(format!("{f}.id"), format!("{id:?} is not unique")));
+            }
+            self.validate_presence(&f, s)?;
+            self.validate_voice(&f, s)?;
+            self.validate_speech(&f, s)?;
+        }
+        self.validate_noise()?;
+        if let Some(r) = &self.region {
+            check_finite("region.min", &r.min)?;
+            check_finite("region.max", &r.max)?;
+            if (0..3).any(|k| r.max[k] <= r.min[k]) {
+                return Err(err(
+                    "region.max",
+                    "must be greater than region.min on every axis",
+                ));
+            }
+        }
+        if let Some(dir) = &self.speech_dir
+            && dir.is_empty()
+        {
+            return Err(err("speech_dir", "must not be empty"));
+        }
+        Ok(())
+    }
+
+    fn validate_sensors(&self) -> Result<(), SimError> {
         if self.arrays.is_empty() {
             return Err(err("arrays", "must list at least one microphone array"));
         }
@@ -71,87 +141,22 @@ impl SimConfig {
             }
             self.validate_camera(&f, c)?;
         }
-        let d = &self.detector;
-        check_range(
-            "detector.detection_probability",
-            d.detection_probability,
-            0.0,
-            1.0,
-            "",
-        )?;
-        check_range(
-            "detector.clutter_per_frame",
-            d.clutter_per_frame,
-            0.0,
-            50.0,
-            "",
-        )?;
-        check_range(
-            "detector.point_sigma_px",
-            d.point_sigma_px,
-            0.0,
-            200.0,
-            " px",
-        )?;
-        check_range("detector.max_yaw_deg", d.max_yaw_deg, 1.0, 180.0, " deg")?;
-        check_range("detector.face_width_m", d.face_width_m, 0.01, 1.0, " m")?;
-        check_range("detector.face_height_m", d.face_height_m, 0.01, 1.0, " m")?;
-        check_range(
-            "detector.face_above_mouth_m",
-            d.face_above_mouth_m,
-            -0.5,
-            0.5,
-            " m",
-        )?;
-        if self.speakers.is_empty() {
-            return Err(err("speakers", "must list at least one talker"));
-        }
-        for (i, s) in self.speakers.iter().enumerate() {
-            self.validate_speaker(&format!("speakers[{i}]"), s)?;
-        }
-        for (i, s) in self.speakers.iter().enumerate() {
-            if let Some(id) = &s.id
-                && self.speakers[..i].iter().any(|o| o.id.as_ref() == Some(id))
-            {
-                return Err(err(
-                    format!("speakers[{i}].id"),
-                    format!("{id:?} is not unique"),
-                ));
-            }
-        }
+        Ok(())
+    }
+
+    fn validate_noise(&self) -> Result<(), SimError> {
         check_range("noise.snr_db", self.noise.snr_db, -20.0, 120.0, " dB")?;
         if let Some(p) = &self.noise.point {
             self.check_inside("noise.point.position", p.position, 0.0)?;
-            check_range("noise.point.snr_db", p.snr_db, -20.0, 120.0, " dB")?;
-            check_range(
-                "noise.point.hum_hz",
-                p.hum_hz,
-                0.0,
-                0.45 * self.sample_rate as f64,
-                " Hz",
+            let top = 0.45 * self.sample_rate as f64;
+            check_ranges(
+                "noise.point.",
+                &[
+                    ("snr_db", p.snr_db, -20.0, 120.0, " dB"),
+                    ("hum_hz", p.hum_hz, 0.0, top, " Hz"),
+                    ("corner_hz", p.corner_hz, 10.0, top, " Hz"),
+                ],
             )?;
-            check_range(
-                "noise.point.corner_hz",
-                p.corner_hz,
-                10.0,
-                0.45 * self.sample_rate as f64,
-                " Hz",
-            )?;
-        }
-        if let Some(r) = &self.region {
-            check_finite("region.min", &r.min)?;
-            check_finite("region.max", &r.max)?;
-            if (0..3).any(|k| r.max[k] <= r.min[k]) {
-                return Err(err(
-                    "region.max",
-                    "must be greater than region.min on every axis",
-                ));
-            }
-        }
-        if let Some(dir) = &self.speech_dir
-            && dir.is_empty()
-        {
-            return Err(err("speech_dir", "must not be empty"));
         }
         Ok(())
     }
@@ -161,22 +166,21 @@ impl SimConfig {
         for (k, s) in r.size_m.iter().enumerate() {
             check_range(&format!("room.size_m[{k}]"), *s, 1.0, 100.0, " m")?;
         }
-        check_range("room.rt60_s", r.rt60_s, 0.01, 3.0, " s")?;
-        check_range(
-            "room.update_interval_s",
-            r.update_interval_s,
-            0.002,
-            0.1,
-            " s",
-        )?;
-        check_range("room.early_s", r.early_s, 0.0, 1.0, " s")?;
-        check_range("room.late_update_m", r.late_update_m, 0.0, 100.0, " m")?;
-        check_range(
-            "room.highpass_hz",
-            r.highpass_hz,
-            0.0,
-            0.25 * self.sample_rate as f64,
-            " Hz",
+        check_ranges(
+            "room.",
+            &[
+                ("rt60_s", r.rt60_s, 0.01, 3.0, " s"),
+                ("update_interval_s", r.update_interval_s, 0.002, 0.1, " s"),
+                ("early_s", r.early_s, 0.0, 1.0, " s"),
+                ("late_update_m", r.late_update_m, 0.0, 100.0, " m"),
+                (
+                    "highpass_hz",
+                    r.highpass_hz,
+                    0.0,
+                    0.25 * self.sample_rate as f64,
+                    " Hz",
+                ),
+            ],
         )?;
         if let Some(s) = r.response_s {
             check_range("room.response_s", s, 0.001, 5.0, " s")?;
@@ -309,7 +313,8 @@ impl SimConfig {
         Ok(())
     }
 
-    fn validate_speaker(&self, f: &str, s: &SpeakerConfig) -> Result<(), SimError> {
+    /// When and where a talker is: id, entry and exit, height, path, sway, facing.
+    fn validate_presence(&self, f: &str, s: &SpeakerConfig) -> Result<(), SimError> {
         if let Some(id) = &s.id
             && (id.is_empty() || id.contains(['/', '\\']))
         {
@@ -318,13 +323,6 @@ impl SimConfig {
                 "must be non-empty and without slashes",
             ));
         }
-        check_range(
-            &format!("{f}.enter_s"),
-            s.enter_s,
-            0.0,
-            self.duration_s - 1e-3,
-            " s",
-        )?;
         if let Some(x) = s.exit_s
             && !(x.is_finite() && x > s.enter_s)
         {
@@ -333,13 +331,15 @@ impl SimConfig {
                 format!("{x} s must be after enter_s"),
             ));
         }
-        let top = self.room.size_m[2] - WALL_MARGIN_M;
-        check_range(
-            &format!("{f}.mouth_height_m"),
-            s.mouth_height_m,
-            0.3,
-            top.min(2.3),
-            " m",
+        let top = (self.room.size_m[2] - WALL_MARGIN_M).min(2.3);
+        check_ranges(
+            &format!("{f}."),
+            &[
+                ("enter_s", s.enter_s, 0.0, self.duration_s - 1e-3, " s"),
+                ("mouth_height_m", s.mouth_height_m, 0.3, top, " m"),
+                ("sway_m", s.sway_m, 0.0, 0.3, " m"),
+                ("facing.jitter_deg", s.facing.jitter_deg, 0.0, 90.0, " deg"),
+            ],
         )?;
         if s.path.is_empty() {
             return Err(err(format!("{f}.path"), "needs at least one keyframe"));
@@ -359,12 +359,10 @@ impl SimConfig {
                 format!("reaches {v:.2} m/s at t = {t:.2} s; the limit is {MAX_SPEED_MPS} m/s"),
             ));
         }
-        check_range(&format!("{f}.sway_m"), s.sway_m, 0.0, 0.3, " m")?;
-        let fc = &s.facing;
-        if let Some(p) = fc.look_at {
+        if let Some(p) = s.facing.look_at {
             check_finite(&format!("{f}.facing.look_at"), &p)?;
         }
-        for (k, a) in fc.away_s.iter().enumerate() {
+        for (k, a) in s.facing.away_s.iter().enumerate() {
             if !(a[0].is_finite() && a[1].is_finite() && a[1] > a[0]) {
                 return Err(err(
                     format!("{f}.facing.away_s[{k}]"),
@@ -372,61 +370,26 @@ impl SimConfig {
                 ));
             }
         }
-        check_range(
-            &format!("{f}.facing.jitter_deg"),
-            fc.jitter_deg,
-            0.0,
-            90.0,
-            " deg",
-        )?;
+        Ok(())
+    }
+
+    fn validate_voice(&self, f: &str, s: &SpeakerConfig) -> Result<(), SimError> {
         let v = &s.voice;
-        let nyq = 0.5 * self.sample_rate as f64;
-        check_range(&format!("{f}.voice.f0_hz"), v.f0_hz, 50.0, 500.0, " Hz")?;
-        check_range(
-            &format!("{f}.voice.f0_range_st"),
-            v.f0_range_st,
-            0.0,
-            24.0,
-            " st",
-        )?;
-        check_range(
-            &format!("{f}.voice.formant_scale"),
-            v.formant_scale,
-            0.7,
-            1.5,
-            "",
-        )?;
-        check_range(
-            &format!("{f}.voice.syllable_rate_hz"),
-            v.syllable_rate_hz,
-            1.0,
-            10.0,
-            " Hz",
-        )?;
-        check_range(
-            &format!("{f}.voice.level_db"),
-            v.level_db,
-            -40.0,
-            20.0,
-            " dB",
-        )?;
-        check_range(
-            &format!("{f}.voice.breathiness"),
-            v.breathiness,
-            0.0,
-            1.0,
-            "",
-        )?;
-        check_range(
-            &format!("{f}.voice.open_quotient"),
-            v.open_quotient,
-            0.3,
-            0.9,
-            "",
-        )?;
-        if nyq < 4000.0 {
-            return Err(err("sample_rate", "synthetic voices need at least 8000 Hz"));
-        }
+        check_ranges(
+            &format!("{f}.voice."),
+            &[
+                ("f0_hz", v.f0_hz, 50.0, 500.0, " Hz"),
+                ("f0_range_st", v.f0_range_st, 0.0, 24.0, " st"),
+                ("formant_scale", v.formant_scale, 0.7, 1.5, ""),
+                ("syllable_rate_hz", v.syllable_rate_hz, 1.0, 10.0, " Hz"),
+                ("level_db", v.level_db, -40.0, 20.0, " dB"),
+                ("breathiness", v.breathiness, 0.0, 1.0, ""),
+                ("open_quotient", v.open_quotient, 0.3, 0.9, ""),
+            ],
+        )
+    }
+
+    fn validate_speech(&self, f: &str, s: &SpeakerConfig) -> Result<(), SimError> {
         let sp = &s.speech;
         let exit = s.exit_s.unwrap_or(self.duration_s).min(self.duration_s);
         for (k, p) in sp.phrases.iter().enumerate() {
@@ -436,12 +399,10 @@ impl SimConfig {
                 return Err(err(pf, "must be [start, end] at least 50 ms long"));
             }
             if p[0] < s.enter_s || p[1] > exit + 1e-9 {
+                let presence = format!("[{}, {exit}] s", s.enter_s);
                 return Err(err(
                     pf,
-                    format!(
-                        "{p:?} is not within the talker's presence [{}, {exit}] s",
-                        s.enter_s
-                    ),
+                    format!("{p:?} is not within the talker's presence {presence}"),
                 ));
             }
             if k > 0 && p[0] < sp.phrases[k - 1][1] {
@@ -449,15 +410,14 @@ impl SimConfig {
             }
         }
         for (name, r) in [("phrase_s", sp.phrase_s), ("pause_s", sp.pause_s)] {
-            if !(r[0].is_finite() && r[1].is_finite() && r[0] > 0.0 && r[1] >= r[0] && r[1] <= 60.0)
-            {
+            let ok = r[0].is_finite() && r[1].is_finite() && r[0] > 0.0 && r[1] >= r[0];
+            if !(ok && r[1] <= 60.0) {
                 return Err(err(
                     format!("{f}.speech.{name}"),
                     format!("{r:?} must be [min, max] with 0 < min <= max <= 60"),
                 ));
             }
         }
-        check_range(&format!("{f}.speech.lead_s"), sp.lead_s, 0.0, 3600.0, " s")?;
-        Ok(())
+        check_range(&format!("{f}.speech.lead_s"), sp.lead_s, 0.0, 3600.0, " s")
     }
 }

@@ -2,11 +2,12 @@
 //!
 //! Voiced sounds are a Rosenberg glottal-flow pulse train, differentiated (lip radiation), with a
 //! wandering F0 (phrase declination, syllable accents, per-period jitter and shimmer) and pulsed
-//! aspiration noise, filtered by a cascade of four second-order formant resonators whose
-//! frequencies glide between vowel targets. Syllables (3-6 per second) carry the amplitude
-//! envelope and may start with a consonant: a fricative (band-pass noise), a stop (silent closure,
-//! burst, aspiration) or a nasal murmur. Phrases are the intervals given; outside them the signal
-//! is exactly zero, so the phrases are where the talker is active.
+//! aspiration noise, filtered by a cascade of second-order formant resonators: F1-F4 glide
+//! between vowel targets, F5 and F6 stay fixed (they keep the upper spectrum from falling off).
+//! Syllables (3-6 per second, see [`super::syllables`]) carry the amplitude envelope and may
+//! start with a fricative (band-pass noise), a stop (closure, burst, aspiration), an aspirate or
+//! a nasal murmur, and may end with a fricative. Phrases are the intervals given; outside them
+//! the signal is exactly zero, so the phrases are where the talker is active.
 
 use std::f64::consts::PI;
 
@@ -14,64 +15,15 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 
 use super::config::VoiceConfig;
+use super::syllables::{Band, BandPass, Syllable, plan_phrase};
 
 /// Nominal RMS of speech at 0 dB `level_db`, over the samples where the talker speaks.
 pub const NOMINAL_RMS: f64 = 0.1;
 
-/// Vowel formant targets F1-F4 (Hz) of an adult male (Peterson & Barney averages).
-const VOWELS: [[f64; 4]; 10] = [
-    [270.0, 2290.0, 3010.0, 3500.0], // i
-    [390.0, 1990.0, 2550.0, 3500.0], // I
-    [530.0, 1840.0, 2480.0, 3500.0], // E
-    [660.0, 1720.0, 2410.0, 3500.0], // ae
-    [730.0, 1090.0, 2440.0, 3500.0], // a
-    [570.0, 840.0, 2410.0, 3500.0],  // O
-    [440.0, 1020.0, 2240.0, 3500.0], // U
-    [300.0, 870.0, 2240.0, 3500.0],  // u
-    [640.0, 1190.0, 2390.0, 3500.0], // V
-    [490.0, 1350.0, 1690.0, 3500.0], // 3r
-];
-/// Formants of a nasal murmur.
-const NASAL: [f64; 4] = [250.0, 1100.0, 2400.0, 3400.0];
-/// Formant bandwidths (Hz) before scaling.
-const BANDWIDTHS: [f64; 4] = [60.0, 90.0, 150.0, 200.0];
-
-/// How a syllable starts.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Onset {
-    /// Straight into the vowel.
-    Vowel,
-    /// Band-pass noise (s, sh, f, th); `voiced` adds a weak voice source (z, zh, v).
-    Fricative {
-        centre_hz: f64,
-        q: f64,
-        level: f64,
-        voiced: bool,
-    },
-    /// Glottal noise through the vocal tract (h).
-    Aspirate,
-    /// Closure (silence), burst, then aspiration if `aspirated`.
-    Stop {
-        closure: usize,
-        burst_hz: f64,
-        level: f64,
-        aspirated: bool,
-    },
-    /// Voiced nasal murmur.
-    Nasal,
-}
-
-/// One syllable of a phrase, in samples relative to the phrase start.
-#[derive(Debug, Clone, Copy)]
-struct Syllable {
-    start: usize,
-    nucleus: usize,
-    end: usize,
-    onset: Onset,
-    vowel: [f64; 4],
-    stress: f64,
-    accent_st: f64,
-}
+/// Bandwidths (Hz) of F1-F6 before scaling with the voice.
+const BANDWIDTHS: [f64; 6] = [60.0, 90.0, 150.0, 200.0, 300.0, 450.0];
+/// The fixed upper formants F5, F6 of an adult male (Hz).
+const UPPER_FORMANTS: [f64; 2] = [4500.0, 5500.0];
 
 /// Synthesises `len` samples of speech by `voice`, talking during `phrases` (s).
 pub fn synthesize<R: Rng + ?Sized>(
@@ -82,9 +34,13 @@ pub fn synthesize<R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Vec<f64> {
     let mut out = vec![0.0; len];
+    let span = |t0: f64, t1: f64| {
+        let a = ((t0 * sample_rate).round().max(0.0) as usize).min(len);
+        let b = ((t1 * sample_rate).round().max(0.0) as usize).min(len);
+        (a, b.max(a))
+    };
     for &(t0, t1) in phrases {
-        let a = ((t0 * sample_rate).round() as usize).min(len);
-        let b = ((t1 * sample_rate).round() as usize).min(len);
+        let (a, b) = span(t0, t1);
         if b <= a + 16 {
             continue;
         }
@@ -96,11 +52,9 @@ pub fn synthesize<R: Rng + ?Sized>(
         }
     }
     // Normalise the level over the speaking samples.
-    let mut energy = 0.0;
-    let mut count = 0usize;
+    let (mut energy, mut count) = (0.0, 0usize);
     for &(t0, t1) in phrases {
-        let a = ((t0 * sample_rate).round() as usize).min(len);
-        let b = ((t1 * sample_rate).round() as usize).min(len);
+        let (a, b) = span(t0, t1);
         energy += out[a..b].iter().map(|v| v * v).sum::<f64>();
         count += b - a;
     }
@@ -112,102 +66,52 @@ pub fn synthesize<R: Rng + ?Sized>(
     out
 }
 
-/// Plans the syllables of a phrase of `len` samples.
-fn plan_phrase<R: Rng + ?Sized>(
-    voice: &VoiceConfig,
-    len: usize,
-    fs: f64,
-    rng: &mut R,
-) -> Vec<Syllable> {
-    let nominal = fs / voice.syllable_rate_hz;
-    let mut out: Vec<Syllable> = Vec::new();
-    let mut start = 0usize;
-    while start < len {
-        let mut dur = (nominal * rng.random_range(0.7..1.3)) as usize;
-        if len - start < (0.6 * nominal) as usize + dur {
-            dur = len - start;
-        }
-        let end = start + dur;
-        let onset = draw_onset(voice, start == 0, fs, rng);
-        let onset_len = match onset {
-            Onset::Vowel => 0.0,
-            Onset::Fricative { .. } => rng.random_range(0.06..0.13),
-            Onset::Aspirate => rng.random_range(0.04..0.08),
-            Onset::Stop {
-                closure, aspirated, ..
-            } => closure as f64 / fs + 0.012 + if aspirated { 0.03 } else { 0.0 },
-            Onset::Nasal => rng.random_range(0.05..0.08),
-        };
-        let nucleus = start + ((onset_len * fs) as usize).min(dur * 45 / 100);
-        let stress = rng.random_range(0.55..1.0);
-        // Stressed syllables (a third) rise, the others sit a little low: zero mean, so that
-        // f0_hz stays the median pitch.
-        let accent_st = voice.f0_range_st
-            * if stress > 0.85 {
-                rng.random_range(0.2..0.6)
-            } else {
-                -0.2 + 0.1 * rng.sample::<f64, _>(StandardNormal)
-            };
-        let mut vowel = VOWELS[rng.random_range(0..VOWELS.len())];
-        for f in vowel.iter_mut() {
-            *f = (*f * voice.formant_scale).min(0.45 * fs);
-        }
-        out.push(Syllable {
-            start,
-            nucleus,
-            end,
-            onset,
-            vowel,
-            stress,
-            accent_st,
-        });
-        start = end;
-    }
-    out
+/// The glottal source: a Rosenberg flow pulse per period, with jitter and shimmer drawn per
+/// period; its output is the flow's derivative (which includes lip radiation).
+#[derive(Debug, Clone, Copy)]
+struct Glottis {
+    phase: f64,
+    prev_flow: f64,
+    jitter: f64,
+    shimmer: f64,
 }
 
-fn draw_onset<R: Rng + ?Sized>(voice: &VoiceConfig, first: bool, fs: f64, rng: &mut R) -> Onset {
-    let sqrt_scale = voice.formant_scale.sqrt();
-    let cap = |f: f64| f.min(0.42 * fs);
-    let u: f64 = rng.random_range(0.0..1.0);
-    // Phrases begin with sound, so the first syllable never starts with a silent closure.
-    let u = if first && (0.55..0.75).contains(&u) {
-        u - 0.2
+impl Glottis {
+    fn new() -> Self {
+        Self {
+            phase: 0.0,
+            prev_flow: 0.0,
+            jitter: 1.0,
+            shimmer: 1.0,
+        }
+    }
+
+    /// One sample at fundamental `f0`: (flow derivative, flow).
+    fn step<R: Rng + ?Sized>(&mut self, f0: f64, oq: f64, fs: f64, rng: &mut R) -> (f64, f64) {
+        self.phase += f0 / (fs * self.jitter);
+        if self.phase >= 1.0 {
+            self.phase -= 1.0;
+            self.jitter = 1.0 + 0.008 * rng.sample::<f64, _>(StandardNormal);
+            self.shimmer = 1.0 + 0.04 * rng.sample::<f64, _>(StandardNormal);
+        }
+        let flow = glottal_flow(self.phase, oq);
+        // Scaled so that the derivative's size does not depend on the pitch.
+        let pulse = (flow - self.prev_flow) * self.shimmer * fs / (100.0 * f0);
+        self.prev_flow = flow;
+        (pulse, flow)
+    }
+}
+
+/// Rosenberg glottal flow at phase `p` in [0, 1) with open quotient `oq`.
+fn glottal_flow(p: f64, oq: f64) -> f64 {
+    let tp = 0.65 * oq;
+    let tn = 0.35 * oq;
+    if p < tp {
+        0.5 * (1.0 - (PI * p / tp).cos())
+    } else if p < tp + tn {
+        (0.5 * PI * (p - tp) / tn).cos()
     } else {
-        u
-    };
-    match u {
-        u if u < 0.35 => Onset::Vowel,
-        u if u < 0.55 => {
-            let (centre_hz, q, level_db) = match rng.random_range(0..4) {
-                0 => (cap(5500.0 * sqrt_scale), 3.0, -6.0),
-                1 => (cap(3000.0 * sqrt_scale), 2.5, -6.0),
-                2 => (cap(4500.0), 0.6, -16.0),
-                _ => (cap(5000.0), 0.7, -18.0),
-            };
-            Onset::Fricative {
-                centre_hz,
-                q,
-                level: 10f64.powf(level_db / 20.0),
-                voiced: rng.random_range(0.0..1.0) < 0.25,
-            }
-        }
-        u if u < 0.75 => {
-            let voiced = rng.random_range(0.0..1.0) < 0.4;
-            let burst_hz = match rng.random_range(0..3) {
-                0 => 1000.0,
-                1 => cap(4000.0 * sqrt_scale),
-                _ => 2200.0 * sqrt_scale,
-            };
-            Onset::Stop {
-                closure: (rng.random_range(0.03..0.06) * fs) as usize,
-                burst_hz,
-                level: if voiced { 0.5 } else { 1.0 },
-                aspirated: !voiced,
-            }
-        }
-        u if u < 0.85 => Onset::Aspirate,
-        _ => Onset::Nasal,
+        0.0
     }
 }
 
@@ -230,53 +134,11 @@ impl Resonator {
     }
 }
 
-/// A band-pass biquad with 0 dB peak gain (RBJ), for frication and bursts.
-#[derive(Debug, Clone, Copy, Default)]
-struct BandPass {
-    x1: f64,
-    x2: f64,
-    y1: f64,
-    y2: f64,
-}
-
-impl BandPass {
-    fn step(&mut self, x: f64, centre: f64, q: f64, fs: f64) -> f64 {
-        let w0 = 2.0 * PI * centre / fs;
-        let alpha = w0.sin() / (2.0 * q);
-        let a0 = 1.0 + alpha;
-        let y =
-            (alpha * x - alpha * self.x2 + 2.0 * w0.cos() * self.y1 - (1.0 - alpha) * self.y2) / a0;
-        self.x2 = self.x1;
-        self.x1 = x;
-        self.y2 = self.y1;
-        self.y1 = y;
-        y
-    }
-
-    /// RMS gain of white noise through the filter (the root energy of its impulse response),
-    /// so that frication levels are relative to the vowels whatever the band.
-    fn noise_gain(centre: f64, q: f64, fs: f64) -> f64 {
-        let mut f = Self::default();
-        let mut energy = 0.0;
-        for n in 0..4096 {
-            let y = f.step(if n == 0 { 1.0 } else { 0.0 }, centre, q, fs);
-            energy += y * y;
-        }
-        energy.sqrt().max(1e-9)
-    }
-}
-
-/// Rosenberg glottal flow at phase `p` in [0, 1) with open quotient `oq`.
-fn glottal_flow(p: f64, oq: f64) -> f64 {
-    let tp = 0.65 * oq;
-    let tn = 0.35 * oq;
-    if p < tp {
-        0.5 * (1.0 - (PI * p / tp).cos())
-    } else if p < tp + tn {
-        (0.5 * PI * (p - tp) / tn).cos()
-    } else {
-        0.0
-    }
+/// Pitch target (semitones from the voice's F0) at `progress` through the phrase: declination,
+/// the syllable's accent, and a final fall on the last syllable.
+fn pitch_target(voice: &VoiceConfig, syl: &Syllable, progress: f64, last: bool) -> f64 {
+    let fall = if last { 0.3 * voice.f0_range_st } else { 0.0 };
+    voice.f0_range_st * (0.4 - 0.8 * progress) + syl.accent_st - fall
 }
 
 /// Renders one phrase of `len` samples.
@@ -289,142 +151,80 @@ fn render_phrase<R: Rng + ?Sized>(
     let syllables = plan_phrase(voice, len, fs, rng);
     let base_f0 = voice.f0_hz * 2f64.powf(rng.sample::<f64, _>(StandardNormal) * 0.08);
     let bw_scale = voice.formant_scale.sqrt();
+    let upper: Vec<f64> = UPPER_FORMANTS
+        .iter()
+        .map(|f| f * voice.formant_scale)
+        .filter(|f| *f < 0.42 * fs)
+        .collect();
     let k = |tau: f64| 1.0 - (-1.0 / (tau * fs)).exp();
     let (k_formant, k_pitch, k_amp) = (k(0.025), k(0.04), k(0.005));
 
-    let mut voiced = vec![0.0; len];
-    let mut noise = vec![0.0; len];
-    let mut tract = [Resonator::default(); 4];
-    let mut band = BandPass::default();
-    let mut formants = syllables.first().map_or(VOWELS[8], |s| s.vowel);
+    let (mut voiced, mut noise) = (vec![0.0; len], vec![0.0; len]);
+    let mut tract = [Resonator::default(); 6];
+    let mut glottis = Glottis::new();
+    let mut band_filter = BandPass::default();
+    let mut band: Option<Band> = None;
+    let mut formants = syllables
+        .first()
+        .map_or([500.0, 1500.0, 2500.0, 3500.0], |s| s.vowel);
     let mut pitch_st = voice.f0_range_st * 0.4;
     let (mut av, mut an, mut ah) = (0.0, 0.0, 0.0);
-    let mut phase = 0.0;
-    let mut prev_flow = 0.0;
-    let (mut jitter, mut shimmer) = (1.0, 1.0);
-    let mut nucleus_energy = 0.0;
-    let mut nucleus_count = 0usize;
-    // Noise gain of each syllable's frication or burst band.
-    let band_gains: Vec<f64> = syllables
-        .iter()
-        .map(|s| match s.onset {
-            Onset::Fricative { centre_hz, q, .. } => BandPass::noise_gain(centre_hz, q, fs),
-            Onset::Stop { burst_hz, .. } => BandPass::noise_gain(burst_hz, 1.2, fs),
-            _ => 1.0,
-        })
-        .collect();
+    let (mut vowel_energy, mut vowel_count) = (0.0, 0usize);
     let mut s_idx = 0;
     for n in 0..len {
         while s_idx + 1 < syllables.len() && n >= syllables[s_idx].end {
             s_idx += 1;
         }
         let syl = &syllables[s_idx];
+        let t = syl.targets(n, voice.formant_scale, fs);
+        // Smooth glides of formants, pitch and amplitudes (frication attacks at once).
+        for (f, target) in formants.iter_mut().zip(t.formants) {
+            *f += k_formant * (target - *f);
+        }
         let last = s_idx + 1 == syllables.len();
-        // Targets of this sample.
-        let (mut av_t, mut an_t, mut ah_t) = (0.0, 0.0, 0.0);
-        let mut f_target = syl.vowel;
-        let (mut centre, mut q, mut level) = (3000.0, 1.0, 0.0);
-        let in_nucleus = n >= syl.nucleus;
-        if in_nucleus {
-            let x = (n - syl.nucleus) as f64 / (syl.end - syl.nucleus).max(1) as f64;
-            av_t = syl.stress * (0.12 + 0.88 * (PI * x).sin().powf(0.7));
+        let st = pitch_target(voice, syl, n as f64 / len as f64, last);
+        pitch_st += k_pitch * (st - pitch_st);
+        av += k_amp * (t.voicing - av);
+        an += if t.frication > an {
+            t.frication - an
         } else {
-            let x = (n - syl.start) as f64 / (syl.nucleus - syl.start).max(1) as f64;
-            let bell = (PI * x).sin().powf(0.5);
-            match syl.onset {
-                Onset::Vowel => {}
-                Onset::Fricative {
-                    centre_hz,
-                    q: qq,
-                    level: l,
-                    voiced,
-                } => {
-                    (centre, q, level) = (centre_hz, qq, l);
-                    an_t = syl.stress * bell;
-                    if voiced {
-                        av_t = 0.25 * syl.stress;
-                    }
-                }
-                Onset::Aspirate => ah_t = 0.6 * syl.stress * bell,
-                Onset::Stop {
-                    closure,
-                    burst_hz,
-                    level: l,
-                    aspirated,
-                } => {
-                    let since = (n - syl.start) as f64 - closure as f64;
-                    if since >= 0.0 {
-                        let burst = 0.012 * fs;
-                        if since < burst {
-                            (centre, q, level) = (burst_hz, 1.2, l);
-                            an_t = syl.stress * (-since / (0.004 * fs)).exp();
-                        } else if aspirated {
-                            ah_t = 0.5 * syl.stress;
-                        }
-                    }
-                }
-                Onset::Nasal => {
-                    av_t = 0.3 * syl.stress;
-                    f_target = NASAL.map(|f| f * voice.formant_scale);
-                }
-            }
-        }
-        // Smooth glides of formants, pitch and amplitudes.
-        for (f, t) in formants.iter_mut().zip(f_target) {
-            *f += k_formant * (t - *f);
-        }
-        let progress = n as f64 / len as f64;
-        let mut st_target = voice.f0_range_st * (0.4 - 0.8 * progress) + syl.accent_st;
-        if last {
-            st_target -= 0.3 * voice.f0_range_st;
-        }
-        pitch_st += k_pitch * (st_target - pitch_st);
-        av += k_amp * (av_t - av);
-        an += if an_t > an {
-            an_t - an
-        } else {
-            k_amp * (an_t - an)
+            k_amp * (t.frication - an)
         };
-        ah += k_amp * (ah_t - ah);
-
-        // Glottal source: one period at a time, with jitter and shimmer drawn per period.
-        let f0 = (base_f0 * 2f64.powf(pitch_st / 12.0)).clamp(50.0, 500.0);
-        phase += f0 / (fs * jitter);
-        if phase >= 1.0 {
-            phase -= 1.0;
-            jitter = 1.0 + 0.008 * rng.sample::<f64, _>(StandardNormal);
-            shimmer = 1.0 + 0.04 * rng.sample::<f64, _>(StandardNormal);
+        ah += k_amp * (t.aspiration - ah);
+        if t.band.is_some() {
+            band = t.band;
         }
-        let flow = glottal_flow(phase, voice.open_quotient);
-        let pulse = (flow - prev_flow) * shimmer * fs / (100.0 * f0);
-        prev_flow = flow;
+
+        let f0 = (base_f0 * 2f64.powf(pitch_st / 12.0)).clamp(50.0, 500.0);
+        let (pulse, flow) = glottis.step(f0, voice.open_quotient, fs, rng);
         let white: f64 = rng.sample(StandardNormal);
-        let aspiration = voice.breathiness * 0.02 * white * (0.3 + flow);
-        let excitation = av * (pulse + aspiration) + ah * 0.03 * white;
-        let mut y = excitation;
-        for (i, r) in tract.iter_mut().enumerate() {
-            let bw = if !in_nucleus && matches!(syl.onset, Onset::Nasal) && i == 0 {
+        let breath = voice.breathiness * 0.02 * white * (0.3 + flow);
+        let mut y = av * (pulse + breath) + ah * 0.03 * white;
+        let freqs = formants.iter().chain(&upper);
+        for (i, (r, f)) in tract.iter_mut().zip(freqs).enumerate() {
+            let bw = if t.nasal && i == 0 {
                 150.0
             } else {
                 BANDWIDTHS[i] * bw_scale
             };
-            y = r.step(y, formants[i], bw, fs);
+            y = r.step(y, *f, bw, fs);
         }
         voiced[n] = y;
-        if in_nucleus {
-            nucleus_energy += y * y;
-            nucleus_count += 1;
+        if t.vowel {
+            vowel_energy += y * y;
+            vowel_count += 1;
         }
-        if an > 1e-6 {
-            let g = band_gains[s_idx];
-            let white2: f64 = rng.sample(StandardNormal);
-            noise[n] = an * level * band.step(white2, centre, q, fs) / g;
-        } else {
-            band = BandPass::default();
+        match band {
+            Some(b) if an > 1e-6 => {
+                let white2: f64 = rng.sample(StandardNormal);
+                noise[n] = an * b.level * band_filter.step(white2, b.centre, b.q, fs) / b.gain;
+            }
+            _ => band_filter = BandPass::default(),
         }
     }
-    // Frication levels are relative to the RMS of the vowels of this phrase.
-    let vowel_rms = (nucleus_energy / nucleus_count.max(1) as f64).sqrt();
+    // Frication levels are relative to the RMS of the vowels of this phrase; the phrase fades in
+    // and out over 10 ms so that it starts and ends at zero.
+    let vowel_rms = (vowel_energy / vowel_count.max(1) as f64).sqrt();
     let ramp = (0.01 * fs) as usize;
     (0..len)
         .map(|n| {
