@@ -374,6 +374,26 @@ mod tests {
     }
 
     #[test]
+    fn talkers_enter_and_leave_as_documented() {
+        for seed in 1..6 {
+            let c = SimConfig::preset("two-arrays", &PresetOptions::default(), seed).unwrap();
+            let d = c.duration_s;
+            let late = c.speakers[1].enter_s / d;
+            assert!(
+                (0.2..=0.35).contains(&late),
+                "seed {seed}: enters at {late} of the scene"
+            );
+            let exit = c.speakers[2].exit_s.expect("the third talker leaves");
+            assert!(exit < d && exit > 0.4 * d, "seed {seed}: leaves at {exit}");
+            let last_phrase = c.speakers[2].speech.phrases.last().unwrap()[1];
+            assert!(last_phrase < exit);
+            let u = SimConfig::preset("uca8", &PresetOptions::default(), seed).unwrap();
+            assert!(u.speakers[2].enter_s > 0.1 * u.duration_s);
+            assert!(u.speakers.iter().any(|s| !s.facing.away_s.is_empty()));
+        }
+    }
+
+    #[test]
     fn segments_crossing_a_box_are_found() {
         let (lo, hi) = ([1.0, 1.0], [2.0, 2.0]);
         assert!(segment_hits_box([0.0, 1.5], [3.0, 1.5], lo, hi));

@@ -74,6 +74,9 @@ pub(super) fn two_arrays(opts: &PresetOptions, seed: u64) -> SimConfig {
     cfg
 }
 
+/// Mean walking speed (m/s) of a talker heading for the door.
+const DOOR_SPEED: f64 = 0.5;
+
 /// The walkable floor around a table.
 struct Floor {
     table: [f64; 2],
@@ -104,11 +107,12 @@ impl Floor {
         } else {
             self.free_point(rng)
         };
-        let until = if leaves { u(rng, 0.5, 0.7) * d } else { d };
+        // A leaver is out of the door by 65-85 % of the scene.
+        let leave_by = leaves.then(|| u(rng, 0.65, 0.85) * d);
         let mut path = Vec::new();
-        let (here, t) = self.wander(start, enter, until, &mut path, rng);
+        let (here, t) = self.wander(start, enter, leave_by, &mut path, rng);
         let exit = leaves.then(|| {
-            let t = walk(&mut path, here, self.door, t, u(rng, 0.4, 0.6), rng);
+            let t = walk(&mut path, here, self.door, t, DOOR_SPEED, rng);
             r3(t + 0.2)
         });
         let speech = SpeechConfig::default();
@@ -149,28 +153,39 @@ impl Floor {
         }
     }
 
-    /// Keyframes of a walk from `start` at `t0` until `t1`: stops of 0.5-2.5 s, legs of 0.8-3 m at
-    /// 0.3-0.6 m/s that go around the table. Returns where and when it ends.
+    /// Keyframes of a walk from `start` at `t0`: stops of 0.5-2.5 s, legs of 0.8-3 m at 0.3-0.6 m/s
+    /// that go around the table, until the end of the scene or, with `leave_by`, as long as the
+    /// door can still be reached by then. Returns where and when the walk ends.
     fn wander<R: Rng + ?Sized>(
         &self,
         start: [f64; 2],
         t0: f64,
-        t1: f64,
+        leave_by: Option<f64>,
         keys: &mut Vec<[f64; 3]>,
         rng: &mut R,
     ) -> ([f64; 2], f64) {
+        let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
         keys.push([r3(t0), r3(start[0]), r3(start[1])]);
         let (mut here, mut t) = (start, t0);
-        while t < t1 {
-            t = r3(t + u(rng, 0.5, 2.5));
-            keys.push([t, r3(here[0]), r3(here[1])]);
+        while t < self.duration {
+            let dwell = u(rng, 0.5, 2.5);
+            let speed = u(rng, 0.3, 0.6);
             let next = (0..100).map(|_| self.free_point(rng)).find(|p| {
-                let len = (p[0] - here[0]).hypot(p[1] - here[1]);
+                let len = dist(here, *p);
+                let in_time = leave_by.is_none_or(|by| {
+                    t + dwell + len / speed + dist(*p, self.door) / DOOR_SPEED <= by
+                });
                 (0.8..=3.0).contains(&len)
+                    && in_time
                     && !segment_hits_box(here, *p, self.keep_out.0, self.keep_out.1)
             });
+            if next.is_none() && leave_by.is_some() {
+                break;
+            }
+            t = r3(t + dwell);
+            keys.push([t, r3(here[0]), r3(here[1])]);
             if let Some(next) = next {
-                t = walk(keys, here, next, t, u(rng, 0.3, 0.6), rng);
+                t = walk(keys, here, next, t, speed, rng);
                 here = next;
             }
         }
