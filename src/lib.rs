@@ -11,6 +11,7 @@ pub mod geometry;
 pub mod label;
 pub mod localize;
 pub mod pipeline;
+pub mod protocol;
 pub mod scene;
 pub mod separate;
 pub mod track;

@@ -27,7 +27,7 @@ pub struct FrameGeometry {
 impl FrameGeometry {
     /// Checks the geometry; `needs_inverse` also requires the overlap that reconstruction needs.
     pub fn validate(&self, needs_inverse: bool) -> Result<(), String> {
-        if !(16..=1 << 16).contains(&self.frame) || self.frame % 2 != 0 {
+        if !(16..=1 << 16).contains(&self.frame) || !self.frame.is_multiple_of(2) {
             return Err(format!(
                 "frame must be an even number of samples in 16..=65536, got {}",
                 self.frame

@@ -284,7 +284,7 @@ impl Camera {
     /// Pixel of `x` and the 2x3 Jacobian d(pixel)/d(x), or `None` behind the camera.
     pub fn project_with_jacobian(&self, x: &Vec3) -> Option<(Pixel, Matrix2x3<f64>)> {
         let h = self.normalized * Vector4::new(x.x, x.y, x.z, 1.0);
-        if !(h[2] > 1e-6) {
+        if h[2].is_nan() || h[2] <= 1e-6 {
             return None;
         }
         let (u0, v0) = (h[0] / h[2], h[1] / h[2]);

@@ -1,0 +1,121 @@
+//! Recent multichannel audio indexed by absolute sample number (session time).
+
+use std::collections::VecDeque;
+
+/// Per-channel history of the last samples received, addressed by absolute sample index.
+///
+/// Indices before the first sample (negative) read as zeros: that is the STFT prepad.
+#[derive(Debug, Clone)]
+pub struct AudioHistory {
+    channels: Vec<VecDeque<f64>>,
+    /// Absolute index of the oldest retained sample.
+    start: u64,
+    /// Absolute index one past the newest sample.
+    end: u64,
+    capacity: usize,
+}
+
+impl AudioHistory {
+    /// History of `channels` channels keeping at least `capacity` samples.
+    pub fn new(channels: usize, capacity: usize) -> Self {
+        Self {
+            channels: vec![VecDeque::with_capacity(capacity + 4096); channels],
+            start: 0,
+            end: 0,
+            capacity,
+        }
+    }
+
+    /// Absolute index one past the newest sample.
+    pub fn end(&self) -> u64 {
+        self.end
+    }
+
+    /// Number of channels.
+    pub fn channels(&self) -> usize {
+        self.channels.len()
+    }
+
+    /// Appends interleaved samples (already validated: finite, right channel count).
+    pub fn append_interleaved(&mut self, samples: &[f32]) {
+        let n = self.channels.len();
+        if n == 0 {
+            return;
+        }
+        for frame in samples.chunks_exact(n) {
+            for (ch, &s) in self.channels.iter_mut().zip(frame) {
+                ch.push_back(f64::from(s));
+            }
+        }
+        self.end += (samples.len() / n) as u64;
+        self.trim();
+    }
+
+    /// Appends `count` samples of silence to every channel (to bridge a gap in the input).
+    pub fn append_silence(&mut self, count: usize) {
+        for ch in &mut self.channels {
+            ch.extend(std::iter::repeat_n(0.0, count));
+        }
+        self.end += count as u64;
+        self.trim();
+    }
+
+    fn trim(&mut self) {
+        let len = (self.end - self.start) as usize;
+        if len > self.capacity {
+            let drop = len - self.capacity;
+            for ch in &mut self.channels {
+                ch.drain(..drop);
+            }
+            self.start += drop as u64;
+        }
+    }
+
+    /// Copies samples `[from, from + out.len())` of channel `ch` into `out`. Indices before 0 read as
+    /// zeros; indices not (or no longer) held are an error (the caller's scheduling is wrong).
+    pub fn read(&self, ch: usize, from: i64, out: &mut [f64]) -> Result<(), String> {
+        let to = from + out.len() as i64;
+        if to > self.end as i64 {
+            return Err(format!(
+                "samples up to {to} requested but only {} received",
+                self.end
+            ));
+        }
+        let data = &self.channels[ch];
+        for (i, o) in out.iter_mut().enumerate() {
+            let idx = from + i as i64;
+            *o = if idx < 0 {
+                0.0
+            } else if (idx as u64) < self.start {
+                return Err(format!(
+                    "sample {idx} already discarded (oldest kept is {})",
+                    self.start
+                ));
+            } else {
+                data[(idx as u64 - self.start) as usize]
+            };
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_by_absolute_index_with_zero_prepad() {
+        let mut h = AudioHistory::new(2, 8);
+        h.append_interleaved(&[1.0, -1.0, 2.0, -2.0, 3.0, -3.0]);
+        let mut out = [9.0; 4];
+        h.read(1, -1, &mut out).unwrap();
+        assert_eq!(out, [0.0, -1.0, -2.0, -3.0]);
+        assert!(h.read(0, 1, &mut out).is_err(), "beyond the end");
+        h.append_silence(10);
+        assert_eq!(h.end(), 13);
+        assert!(h.read(0, 0, &mut [0.0; 2]).is_err(), "discarded");
+        let mut tail = [1.0; 3];
+        h.read(0, 10, &mut tail).unwrap();
+        assert_eq!(tail, [0.0; 3]);
+    }
+}

@@ -1,0 +1,122 @@
+//! Settings of one session's pipeline, with the stages' own settings nested.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::localize::LocalizerConfig;
+use crate::separate::SeparatorConfig;
+use crate::track::TrackerConfig;
+
+/// Where the tracker's audio measurements come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AudioMeasurementSource {
+    /// Device measurements when the session receives them, else the built-in localiser.
+    #[default]
+    Auto,
+    /// Only the built-in SRP-PHAT localiser.
+    Localize,
+    /// Only measurements sent by devices that localise themselves.
+    Device,
+    /// Both, as separate sensors.
+    Both,
+}
+
+/// Pipeline settings. Every field has a default; unknown fields are errors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct PipelineConfig {
+    /// Tracker step period in seconds (the paper's 0.128 s by default; 0.032 to 1.0).
+    pub step_s: f64,
+    /// How long (seconds of audio) a step waits for cameras that have not yet sent a frame at or
+    /// after the step's end; after that the step runs and such cameras count as absent.
+    pub camera_wait_s: f64,
+    /// Seed of the session's random numbers; derived from the session id (or scene) when absent.
+    pub seed: Option<u64>,
+    /// Where audio measurements come from.
+    pub audio_measurements: AudioMeasurementSource,
+    /// Whether camera detections are used by the tracker.
+    pub cameras: bool,
+    /// Boxes with a detector score below this are ignored.
+    pub min_box_score: f64,
+    /// Longest gap in the audio (seconds) that is bridged with silence; a longer jump is refused.
+    pub max_gap_s: f64,
+    /// Whether separated audio is produced.
+    pub separation: bool,
+    /// Settings of the SRP-PHAT localiser.
+    pub localize: LocalizerConfig,
+    /// Settings of the tracker.
+    pub track: TrackerConfig,
+    /// Settings of the separator.
+    pub separate: SeparatorConfig,
+}
+
+impl Default for PipelineConfig {
+    fn default() -> Self {
+        Self {
+            step_s: 0.128,
+            camera_wait_s: 0.15,
+            seed: None,
+            audio_measurements: AudioMeasurementSource::Auto,
+            cameras: true,
+            min_box_score: 0.0,
+            max_gap_s: 2.0,
+            separation: true,
+            localize: LocalizerConfig::default(),
+            track: TrackerConfig::default(),
+            separate: SeparatorConfig::default(),
+        }
+    }
+}
+
+/// A configuration value that is out of range.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct ConfigError {
+    /// Dotted path of the field, e.g. `track.p_survival`.
+    pub field: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl ConfigError {
+    /// An error about `field`.
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self { field: field.into(), message: message.into() }
+    }
+}
+
+impl PipelineConfig {
+    /// Checks the pipeline's own fields (the stages check theirs when built).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(0.032..=1.0).contains(&self.step_s) {
+            return Err(ConfigError::new("step_s", format!("{} is outside 0.032..=1.0 s", self.step_s)));
+        }
+        if !(0.0..=2.0).contains(&self.camera_wait_s) {
+            return Err(ConfigError::new("camera_wait_s", format!("{} is outside 0..=2 s", self.camera_wait_s)));
+        }
+        if !(0.0..=1.0).contains(&self.min_box_score) {
+            return Err(ConfigError::new("min_box_score", "must be in [0, 1]"));
+        }
+        if !(0.0..=60.0).contains(&self.max_gap_s) {
+            return Err(ConfigError::new("max_gap_s", "must be in 0..=60 s"));
+        }
+        Ok(())
+    }
+
+    /// Parses a JSON or TOML configuration (TOML unless the text starts with `{`), filling absent
+    /// fields with defaults and naming unknown or mistyped fields in the error.
+    pub fn parse(text: &str) -> Result<Self, ConfigError> {
+        let cfg: Self = if text.trim_start().starts_with('{') {
+            let de = &mut serde_json::Deserializer::from_str(text);
+            serde_path_to_error::deserialize(de)
+                .map_err(|e| ConfigError::new(e.path().to_string(), e.inner().to_string()))?
+        } else {
+            let de = toml::Deserializer::parse(text).map_err(|e| ConfigError::new("", e.to_string()))?;
+            serde_path_to_error::deserialize(de)
+                .map_err(|e| ConfigError::new(e.path().to_string(), e.inner().message().to_string()))?
+        };
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
