@@ -138,10 +138,10 @@ pub struct PositionConfig {
 impl Default for PositionConfig {
     fn default() -> Self {
         Self {
-            initial_points: 3000,
+            initial_points: 2000,
             kept_points: 100,
             min_volume_m3: 1e-4,
-            max_evaluations: 8000,
+            max_evaluations: 5000,
             default_half_size_m: 3.0,
             min_range_m: 0.3,
             exclusion_radius_m: 0.3,
@@ -157,12 +157,14 @@ pub struct PeakConfig {
     pub min_power: f64,
     /// Candidates after the first must reach this fraction of the first candidate's SRP.
     pub relative_power: f64,
-    /// Every candidate must exceed the mean of the frame's SRP over the coarse direction grid by
-    /// this many null standard deviations 1 / sqrt(2 * band bins * pairs), the spread of the SRP
-    /// of incoherent signals (the map's own spread is dominated by a strong source's main lobe).
+    /// Every candidate must exceed the mean SRP over the coarse direction grid of the map it was
+    /// found in (after removing the candidates before it) by this many null standard deviations
+    /// 1 / sqrt(2 * band bins * pairs), the spread of the SRP of incoherent signals (the map's own
+    /// spread is dominated by the main lobes of the sources).
     pub prominence_sigmas: f64,
-    /// Half-width of the lag window zeroed in each pair's GCC around a found source's lag, in units
-    /// of the GCC main-lobe half-width 1 / (2 (band_low_hz + band_high_hz)).
+    /// A found source is removed from each pair's GCC by subtracting the GCC a lone source at its
+    /// lag would give (scaled to the GCC there) within this half-width of the lag, in units of
+    /// the band kernel's envelope half-width 1 / (band_high_hz - band_low_hz).
     pub removal_width: f64,
     /// Later direction searches of the same frame skip directions within this angle (degrees) of an
     /// accepted candidate (for linear arrays: cone angles within it).
@@ -175,7 +177,7 @@ impl Default for PeakConfig {
             min_power: 0.05,
             relative_power: 0.3,
             prominence_sigmas: 5.0,
-            removal_width: 1.0,
+            removal_width: 2.0,
             exclusion_angle_deg: 10.0,
         }
     }
@@ -234,7 +236,7 @@ impl LocalizerConfig {
     pub fn validate(&self, layout: &Layout) -> Result<(), ConfigError> {
         let nyquist = f64::from(layout.sample_rate) / 2.0;
         check(
-            (64..=65536).contains(&self.frame) && self.frame % 2 == 0,
+            (64..=65536).contains(&self.frame) && self.frame.is_multiple_of(2),
             "frame",
             "must be an even number of samples in 64..=65536",
         )?;

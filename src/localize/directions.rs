@@ -13,7 +13,7 @@
 
 use crate::geometry::{Aabb, ArrayShape, MicArray, Vec3};
 
-use super::gcc::GccBank;
+use super::gcc::{GccBank, lerp};
 use super::geodesic::GeodesicSphere;
 
 /// Smallest chord (metres) a ray must travel inside the region to count as pointing into it.
@@ -54,8 +54,8 @@ pub(crate) struct DirectionSearch {
     levels: Vec<Level>,
     /// Far-field TDOA of pair q in fine steps is `pair_steps[q] . d`.
     pair_steps: Vec<Vec3>,
-    halves: Vec<f64>,
-    offsets: Vec<usize>,
+    /// Absolute table position of every pair's zero lag.
+    zeros: Vec<f64>,
     /// Max-filter half-widths (fine steps) per coarse level and pair.
     widths: Vec<Vec<usize>>,
     filtered: Vec<Vec<f64>>,
@@ -68,16 +68,21 @@ pub(crate) struct DirectionSearch {
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct GridStats {
     pub mean: f64,
-    pub std: f64,
     pub max: f64,
 }
 
-#[inline]
-fn lookup(table: &[f64], offset: usize, x: f64) -> f64 {
-    let i = x as usize;
-    let f = x - i as f64;
-    let a = table[offset + i];
-    a + f * (table[offset + i + 1] - a)
+/// Sum of `f` over `items` with four partial sums (breaks the chain of dependent additions).
+#[inline(always)]
+fn sum4<T>(items: &[T], f: impl Fn(&T) -> f64) -> f64 {
+    let chunks = items.chunks_exact(4);
+    let rest: f64 = chunks.remainder().iter().map(&f).sum();
+    let mut acc = [0.0; 4];
+    for c in chunks {
+        for (s, x) in acc.iter_mut().zip(c) {
+            *s += f(x);
+        }
+    }
+    acc[0] + acc[1] + acc[2] + acc[3] + rest
 }
 
 fn ray_enters(region: &Aabb, origin: &Vec3, d: &Vec3) -> bool {
@@ -139,16 +144,18 @@ impl DirectionSearch {
             .iter()
             .map(|p| (array.mics[p.b] - array.mics[p.a]) * (bank.steps_per_second / speed_of_sound))
             .collect();
-        let halves: Vec<f64> = bank.pairs.iter().map(|p| p.half as f64).collect();
-        let offsets = bank.pairs.iter().map(|p| p.offset).collect();
+        let zeros: Vec<f64> = bank
+            .pairs
+            .iter()
+            .map(|p| (p.offset + p.half) as f64)
+            .collect();
         let mut search = Self {
             centroid,
             region,
             ambiguity,
             levels: Vec::new(),
             pair_steps,
-            halves,
-            offsets,
+            zeros,
             widths: Vec::new(),
             filtered: Vec::new(),
             work: vec![0.0; 2 * bank.longest_table()],
@@ -163,6 +170,14 @@ impl DirectionSearch {
         search.first_step = spheres.last().map_or(0.05, |s| s.spacing() / 2.0);
         search.filtered = vec![vec![0.0; bank.table.len()]; search.widths.len()];
         search
+    }
+
+    /// The unit normal of a planar array's searched half-space (facing the region).
+    pub fn mirror_normal(&self) -> Option<Vec3> {
+        match self.ambiguity {
+            Ambiguity::Mirror { normal } => Some(normal),
+            _ => None,
+        }
     }
 
     /// Whether the search may report `d` (before folding).
@@ -200,8 +215,8 @@ impl DirectionSearch {
         }
         let mut idx = Vec::with_capacity(dirs.len() * self.pair_steps.len());
         for d in &dirs {
-            for (v, h) in self.pair_steps.iter().zip(&self.halves) {
-                idx.push((h + v.dot(d)) as f32);
+            for (v, z) in self.pair_steps.iter().zip(&self.zeros) {
+                idx.push((z + v.dot(d)) as f32);
             }
         }
         let neighbours = sphere
@@ -259,48 +274,39 @@ impl DirectionSearch {
     #[inline]
     fn srp_at(&self, table: &[f64], level: &Level, p: usize) -> f64 {
         let np = self.pair_steps.len();
-        let idx = &level.idx[p * np..(p + 1) * np];
-        let sum: f64 = idx
-            .iter()
-            .zip(&self.offsets)
-            .map(|(&x, &o)| lookup(table, o, f64::from(x)))
-            .sum();
-        sum / np as f64
+        sum4(&level.idx[p * np..(p + 1) * np], |&x| {
+            lerp(table, f64::from(x))
+        }) / np as f64
     }
 
     /// Mean normalised SRP in direction `d` (any unit vector), from `table`.
     #[inline]
     fn srp_dir(&self, table: &[f64], d: &Vec3) -> f64 {
         let np = self.pair_steps.len();
-        let mut sum = 0.0;
-        for q in 0..np {
-            sum += lookup(
-                table,
-                self.offsets[q],
-                self.halves[q] + self.pair_steps[q].dot(d),
-            );
-        }
+        let sum: f64 = self
+            .pair_steps
+            .iter()
+            .zip(&self.zeros)
+            .map(|(v, z)| lerp(table, z + v.dot(d)))
+            .sum();
         sum / np as f64
     }
 
-    /// SRP mean, standard deviation and maximum over the coarsest level.
+    /// SRP mean and maximum over the coarsest level.
     pub fn grid_stats(&self, bank: &GccBank) -> GridStats {
         let level = &self.levels[0];
         let n = level.dirs.len();
         if n == 0 {
             return GridStats::default();
         }
-        let (mut s, mut s2, mut max) = (0.0, 0.0, f64::NEG_INFINITY);
+        let (mut s, mut max) = (0.0, f64::NEG_INFINITY);
         for p in 0..n {
             let v = self.srp_at(&bank.table, level, p);
             s += v;
-            s2 += v * v;
             max = max.max(v);
         }
-        let mean = s / n as f64;
         GridStats {
-            mean,
-            std: (s2 / n as f64 - mean * mean).max(0.0).sqrt(),
+            mean: s / n as f64,
             max,
         }
     }
@@ -316,7 +322,14 @@ impl DirectionSearch {
     }
 
     fn excluded(&self, d: &Vec3, accepted: &[Vec3], exclusion: f64) -> bool {
-        accepted.iter().any(|a| self.separation(d, a) < exclusion)
+        match self.ambiguity {
+            Ambiguity::Cone { .. } => accepted.iter().any(|a| self.separation(d, a) < exclusion),
+            // Same test as the angle, without an arc cosine per grid point.
+            _ => {
+                let cos = exclusion.cos();
+                accepted.iter().any(|a| a.dot(d) > cos)
+            }
+        }
     }
 
     /// Finds the strongest direction not within `exclusion` radians of an accepted one; returns
@@ -386,15 +399,16 @@ impl DirectionSearch {
         let mut best = self.srp_dir(table, &d);
         let mut step = self.first_step;
         let mut moves = 0;
+        const D: f64 = std::f64::consts::FRAC_1_SQRT_2;
         const OFFSETS: [(f64, f64); 8] = [
             (1.0, 0.0),
             (-1.0, 0.0),
             (0.0, 1.0),
             (0.0, -1.0),
-            (0.7071, 0.7071),
-            (0.7071, -0.7071),
-            (-0.7071, 0.7071),
-            (-0.7071, -0.7071),
+            (D, D),
+            (D, -D),
+            (-D, D),
+            (-D, -D),
         ];
         while step >= self.min_step && moves < MAX_REFINE_MOVES {
             let helper = if d.x.abs() < 0.9 {

@@ -37,6 +37,15 @@ pub(crate) struct Pair {
     pub half: usize,
 }
 
+/// Linear interpolation of the concatenated tables at absolute fine position `pos` (>= 0).
+#[inline(always)]
+pub(crate) fn lerp(table: &[f64], pos: f64) -> f64 {
+    let i = pos as usize;
+    let f = pos - i as f64;
+    let a = table[i];
+    a + f * (table[i + 1] - a)
+}
+
 /// GCC-PHAT tables of all pairs of one array, with the buffers to compute them in place.
 pub(crate) struct GccBank {
     pub pairs: Vec<Pair>,
@@ -55,6 +64,9 @@ pub(crate) struct GccBank {
     time: Vec<f64>,
     lags: Vec<f64>,
     kernels: Vec<f64>,
+    /// The band's PHAT kernel K(d) = mean over band bins of cos(omega_k d), at fine offsets d >= 0
+    /// (the normalised GCC of a lone, perfectly coherent source, centred on its lag).
+    kernel: Vec<f64>,
     irfft: Arc<dyn ComplexToReal<f64>>,
     scratch: Vec<Complex>,
     norm: f64,
@@ -92,6 +104,19 @@ fn sinc_kernel(x: f64) -> f64 {
     sinc * bessel_i0(KAISER_BETA * (1.0 - r * r).sqrt()) / bessel_i0(KAISER_BETA)
 }
 
+/// Mean over bins k in `band` of cos(2 pi k d / frame), for a lag of `d` samples (closed form of
+/// the sum of cosines in arithmetic progression).
+fn band_kernel(band: (usize, usize), frame: usize, d: f64) -> f64 {
+    let n = (band.1 + 1 - band.0) as f64;
+    let b = 2.0 * PI * d / frame as f64;
+    let half = (b / 2.0).sin();
+    if half.abs() < 1e-12 {
+        return 1.0;
+    }
+    let a = b * band.0 as f64;
+    (n * b / 2.0).sin() / half * (a + (n - 1.0) * b / 2.0).cos() / n
+}
+
 impl GccBank {
     /// Tables for every pair of `array`; `band` is the inclusive range of bins used.
     pub fn new(
@@ -124,6 +149,9 @@ impl GccBank {
         let irfft = RealFftPlanner::<f64>::new().plan_fft_inverse(frame);
         let scratch = irfft.make_scratch_vec();
         let nb = band.1 + 1 - band.0;
+        let kernel = (0..2 * max_half + 4)
+            .map(|j| band_kernel(band, frame, j as f64 / interpolation as f64))
+            .collect();
         let window_power: f64 = crate::dsp::hann_periodic(frame).iter().map(|w| w * w).sum();
         Self {
             pairs,
@@ -138,6 +166,7 @@ impl GccBank {
             time: vec![0.0; frame],
             lags: vec![0.0; 2 * lag_span + 1],
             kernels,
+            kernel,
             irfft,
             scratch,
             norm: 1.0 / (2.0 * nb as f64),
@@ -168,10 +197,12 @@ impl GccBank {
             let bins = &spectra.channel(ch)[self.band.0..=self.band.1];
             let out = &mut self.white[m * nb..(m + 1) * nb];
             for (o, y) in out.iter_mut().zip(bins) {
-                let mag = y.norm();
-                if y.re.is_finite() && y.im.is_finite() && mag > 1e-30 && mag.is_finite() {
-                    *o = y / mag;
-                    energy += mag * mag;
+                // |Y|^2 without hypot: non-finite or overflowing bins fail the test and count as zero.
+                let p = y.re * y.re + y.im * y.im;
+                if p.is_finite() && p > 1e-60 {
+                    let mag = p.sqrt();
+                    *o = Complex::new(y.re / mag, y.im / mag);
+                    energy += p;
                 } else {
                     *o = Complex::new(0.0, 0.0);
                 }
@@ -237,17 +268,24 @@ impl GccBank {
         self.table.copy_from_slice(&self.pristine);
     }
 
-    /// Zeroes each pair's GCC within `half_width_s` seconds of the lag `tdoa_s[q]`, removing a
-    /// found source before the next search.
+    /// Removes a found source before the next search (CLEAN): subtracts from each pair's GCC the
+    /// GCC a lone source at lag `tdoa_s[q]` would give, alpha * K(tau - tdoa), with alpha the
+    /// pair's GCC at that lag and K the band's PHAT kernel, within `half_width_s` of the lag.
+    /// Other sources keep their peaks unless their lags nearly coincide; zeroing a window
+    /// instead would wipe most of a small array's short lag range.
     pub fn remove(&mut self, tdoa_s: &[f64], half_width_s: f64) {
         let w = half_width_s * self.steps_per_second;
         for (q, p) in self.pairs.iter().enumerate() {
-            let centre = p.half as f64 + tdoa_s[q] * self.steps_per_second;
+            let end = 2 * p.half;
+            let centre = (p.half as f64 + tdoa_s[q] * self.steps_per_second).clamp(0.0, end as f64);
+            let table = &mut self.table[p.offset..p.offset + end + 2];
+            let alpha = lerp(table, centre).max(0.0);
             let lo = (centre - w).ceil().max(0.0) as usize;
-            let hi = ((centre + w).floor().max(-1.0) + 1.0) as usize;
-            let end = 2 * p.half + 2;
-            let (lo, hi) = (lo.min(end), hi.min(end));
-            self.table[p.offset + lo..p.offset + hi].fill(0.0);
+            let hi = ((centre + w).floor() as usize).min(end);
+            for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                *t -= alpha * lerp(&self.kernel, (j as f64 - centre).abs());
+            }
+            table[end + 1] = table[end];
         }
     }
 
@@ -277,31 +315,35 @@ fn sliding_max(src: &[f64], w: usize, dst: &mut [f64], work: &mut [f64]) {
         dst.copy_from_slice(src);
         return;
     }
+    let max = |a: f64, b: f64| if a > b { a } else { b };
     let block = 2 * w + 1;
     let (prefix, suffix) = work.split_at_mut(n);
     // prefix[i]: max from the start of i's block to i; suffix[i]: max from i to its block's end.
-    for i in 0..n {
-        prefix[i] = if i % block == 0 {
-            src[i]
-        } else {
-            prefix[i - 1].max(src[i])
-        };
-    }
-    for i in (0..n).rev() {
-        suffix[i] = if i == n - 1 || (i + 1) % block == 0 {
-            src[i]
-        } else {
-            suffix[i + 1].max(src[i])
-        };
+    let mut start = 0;
+    while start < n {
+        let end = (start + block).min(n);
+        prefix[start] = src[start];
+        for i in start + 1..end {
+            prefix[i] = max(prefix[i - 1], src[i]);
+        }
+        suffix[end - 1] = src[end - 1];
+        for i in (start..end - 1).rev() {
+            suffix[i] = max(suffix[i + 1], src[i]);
+        }
+        start = end;
     }
     // A window of at most one block spans at most two blocks. Inside one block it either starts
     // at the block's start (use the prefix of its end) or ends at the signal's end (the suffix).
+    let mut lo_block = 0;
     for (i, d) in dst.iter_mut().enumerate() {
         let lo = i.saturating_sub(w);
         let hi = (i + w).min(n - 1);
-        *d = if lo / block != hi / block {
-            suffix[lo].max(prefix[hi])
-        } else if lo % block == 0 {
+        if lo >= lo_block + block {
+            lo_block += block;
+        }
+        *d = if hi >= lo_block + block {
+            max(suffix[lo], prefix[hi])
+        } else if lo == lo_block {
             prefix[hi]
         } else {
             suffix[lo]

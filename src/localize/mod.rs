@@ -26,7 +26,7 @@ pub use config::{
 };
 
 use activity::ActivityTracker;
-use directions::{DirectionSearch, GridStats};
+use directions::DirectionSearch;
 use gcc::GccBank;
 use region_contraction::PositionSearch;
 
@@ -174,16 +174,27 @@ impl Localizer {
             self.sample_rate,
             c,
         );
-        let searches = (array.len() >= 2).then(|| Searches {
-            directions: DirectionSearch::new(
+        let searches = (array.len() >= 2).then(|| {
+            let directions = DirectionSearch::new(
                 array,
                 &bank,
                 layout.region,
                 &self.cfg.directions.levels,
                 self.cfg.directions.refine_step_deg.to_radians(),
                 c,
-            ),
-            positions: PositionSearch::new(array, &bank, layout.region, &self.cfg.positions, c),
+            );
+            let positions = PositionSearch::new(
+                array,
+                &bank,
+                layout.region,
+                &self.cfg.positions,
+                c,
+                directions.mirror_normal(),
+            );
+            Searches {
+                directions,
+                positions,
+            }
         });
         ArrayState {
             index,
@@ -228,25 +239,28 @@ impl Localizer {
 
 /// Decides whether a search result is accepted as a candidate.
 struct Acceptance {
-    floor: f64,
+    min_power: f64,
     relative: f64,
+    prominence: f64,
     first: Option<f64>,
 }
 
 impl Acceptance {
-    fn new(cfg: &PeakConfig, stats: &GridStats, null_std: f64) -> Self {
+    fn new(cfg: &PeakConfig, null_std: f64) -> Self {
         Self {
-            floor: cfg
-                .min_power
-                .max(stats.mean + cfg.prominence_sigmas * null_std),
+            min_power: cfg.min_power,
             relative: cfg.relative_power,
+            prominence: cfg.prominence_sigmas * null_std,
             first: None,
         }
     }
 
-    fn accepts(&mut self, power: f64) -> bool {
+    /// Whether a peak of `power` found in a map (after the removal of the sources accepted so
+    /// far) whose coarse-grid mean is `map_mean` is a source.
+    fn accepts(&mut self, power: f64, map_mean: f64) -> bool {
         let ok = power.is_finite()
-            && power >= self.floor
+            && power >= self.min_power
+            && power >= map_mean + self.prominence
             && self.first.is_none_or(|f| power >= self.relative * f);
         if ok && self.first.is_none() {
             self.first = Some(power);
@@ -278,18 +292,22 @@ fn process_array(
     if obs.activity < cfg.activity.min_activity {
         return;
     }
-    let removal = cfg.peaks.removal_width / (2.0 * (cfg.band_low_hz + cfg.band_high_hz));
+    let removal = cfg.peaks.removal_width / (cfg.band_high_hz - cfg.band_low_hz);
     let exclusion = cfg.peaks.exclusion_angle_deg.to_radians();
     let sps = bank.steps_per_second;
     let found = &mut state.found;
     if cfg.search.directions() {
-        let mut accept = Acceptance::new(&cfg.peaks, &stats, bank.null_std());
+        let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
+        let mut map_mean = stats.mean;
         found.clear();
         while found.len() < cfg.max_candidates {
+            if !found.is_empty() {
+                map_mean = searches.directions.grid_stats(bank).mean;
+            }
             let Some((d, p)) = searches.directions.search(bank, found, exclusion) else {
                 break;
             };
-            if !accept.accepts(p) {
+            if !accept.accepts(p, map_mean) {
                 break;
             }
             searches.directions.tdoas(&d, sps, &mut state.tdoas);
@@ -305,13 +323,17 @@ fn process_array(
         bank.restore();
     }
     if cfg.search.positions() {
-        let mut accept = Acceptance::new(&cfg.peaks, &stats, bank.null_std());
+        let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
+        let mut map_mean = stats.mean;
         found.clear();
         while found.len() < cfg.max_candidates {
+            if !found.is_empty() {
+                map_mean = searches.directions.grid_stats(bank).mean;
+            }
             let Some((x, p)) = searches.positions.search(bank, found, rng) else {
                 break;
             };
-            if !accept.accepts(p) {
+            if !accept.accepts(p, map_mean) {
                 break;
             }
             searches.positions.tdoas(&x, sps, &mut state.tdoas);

@@ -6,7 +6,7 @@ use rand::Rng;
 use crate::geometry::{Aabb, MicArray, Vec3};
 
 use super::config::PositionConfig;
-use super::gcc::GccBank;
+use super::gcc::{GccBank, lerp};
 
 /// Draws allowed per accepted point before giving up on a crowded box.
 const MAX_DRAW_TRIES: usize = 32;
@@ -19,9 +19,10 @@ const POLISH_MAX_EVALUATIONS: usize = 300;
 pub(crate) struct PositionSearch {
     bounds: Aabb,
     mics: Vec<Vec3>,
-    pairs: Vec<(usize, usize)>,
-    halves: Vec<f64>,
-    offsets: Vec<usize>,
+    /// Planar arrays: only points with `normal . (x - centroid) >= 0` are searched.
+    half_space: Option<(Vec3, Vec3)>,
+    /// Microphones of each pair and the absolute table position of its zero lag.
+    pairs: Vec<(usize, usize, f64)>,
     /// Fine table steps per metre of path difference.
     steps_per_metre: f64,
     min_range: f64,
@@ -42,21 +43,37 @@ impl PositionSearch {
         region: Option<Aabb>,
         cfg: &PositionConfig,
         speed_of_sound: f64,
+        half_space: Option<Vec3>,
     ) -> Self {
-        let bounds = region.unwrap_or_else(|| {
+        let centroid = array.centroid();
+        let mut bounds = region.unwrap_or_else(|| {
             let h = Vec3::repeat(cfg.default_half_size_m);
-            let c = array.centroid();
             Aabb {
-                min: c - h,
-                max: c + h,
+                min: centroid - h,
+                max: centroid + h,
             }
         });
+        // A planar array cannot tell a point from its mirror image: search the side facing the
+        // region only, and cut the box there when the plane is axis-aligned.
+        if let Some(n) = half_space {
+            for i in 0..3 {
+                let (lo, hi) = (bounds.min[i], bounds.max[i]);
+                if n[i] > 0.999 && centroid[i] < hi {
+                    bounds.min[i] = lo.max(centroid[i]);
+                } else if n[i] < -0.999 && centroid[i] > lo {
+                    bounds.max[i] = hi.min(centroid[i]);
+                }
+            }
+        }
         Self {
             bounds,
+            half_space: half_space.map(|n| (n, centroid)),
             mics: array.mics.clone(),
-            pairs: bank.pairs.iter().map(|p| (p.a, p.b)).collect(),
-            halves: bank.pairs.iter().map(|p| p.half as f64).collect(),
-            offsets: bank.pairs.iter().map(|p| p.offset).collect(),
+            pairs: bank
+                .pairs
+                .iter()
+                .map(|p| (p.a, p.b, (p.offset + p.half) as f64))
+                .collect(),
             steps_per_metre: bank.steps_per_second / speed_of_sound,
             min_range: cfg.min_range_m,
             initial: cfg.initial_points,
@@ -73,22 +90,31 @@ impl PositionSearch {
     #[inline]
     fn srp(&mut self, table: &[f64], x: &Vec3) -> f64 {
         for (d, m) in self.dist.iter_mut().zip(&self.mics) {
-            *d = (x - m).norm() * self.steps_per_metre;
+            *d = (x - m).norm_squared().sqrt() * self.steps_per_metre;
         }
-        let mut sum = 0.0;
-        for (q, &(a, b)) in self.pairs.iter().enumerate() {
-            let pos = self.halves[q] + self.dist[a] - self.dist[b];
-            let i = pos as usize;
-            let f = pos - i as f64;
-            let o = self.offsets[q] + i;
-            sum += table[o] + f * (table[o + 1] - table[o]);
+        // Four partial sums break the chain of dependent additions.
+        let dist = &self.dist;
+        let term = |&(a, b, zero): &(usize, usize, f64)| lerp(table, zero + dist[a] - dist[b]);
+        let mut acc = [0.0; 4];
+        let chunks = self.pairs.chunks_exact(4);
+        let rest: f64 = chunks.remainder().iter().map(term).sum();
+        for c in chunks {
+            for (s, p) in acc.iter_mut().zip(c) {
+                *s += term(p);
+            }
         }
+        let sum = acc[0] + acc[1] + acc[2] + acc[3] + rest;
         sum / self.pairs.len() as f64
     }
 
     fn valid(&self, x: &Vec3, accepted: &[Vec3]) -> bool {
-        self.mics.iter().all(|m| (x - m).norm() >= self.min_range)
-            && accepted.iter().all(|a| (x - a).norm() >= self.exclusion)
+        let (r2, e2) = (
+            self.min_range * self.min_range,
+            self.exclusion * self.exclusion,
+        );
+        self.half_space.is_none_or(|(n, c)| n.dot(&(x - c)) >= 0.0)
+            && self.mics.iter().all(|m| (x - m).norm_squared() >= r2)
+            && accepted.iter().all(|a| (x - a).norm_squared() >= e2)
     }
 
     /// A uniform point of `bx` that is far enough from the mics and the accepted candidates.
@@ -249,7 +275,7 @@ impl PositionSearch {
     /// Near-field TDOAs (seconds) of every pair for a source at `x`.
     pub fn tdoas(&self, x: &Vec3, steps_per_second: f64, out: &mut [f64]) {
         let per_metre = self.steps_per_metre / steps_per_second;
-        for (o, &(a, b)) in out.iter_mut().zip(&self.pairs) {
+        for (o, &(a, b, _)) in out.iter_mut().zip(&self.pairs) {
             *o = ((x - self.mics[a]).norm() - (x - self.mics[b]).norm()) * per_metre;
         }
     }

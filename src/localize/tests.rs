@@ -96,6 +96,53 @@ fn interpolated_gcc_matches_the_exact_band_sum() {
 }
 
 #[test]
+fn removing_a_source_keeps_the_other_pairs_peak() {
+    // Two sources on a 20 cm pair: removing the stronger one's lag leaves the weaker one's peak
+    // standing, and removing both leaves no lag with half the weaker peak (the PHAT of a mixture
+    // is not exactly the sum of the sources' GCCs, so some residual remains).
+    let array = MicArray::new(
+        "a",
+        vec![Vec3::zeros(), Vec3::new(0.2, 0.0, 0.0)],
+        vec![0, 1],
+    )
+    .unwrap();
+    let (s1, s2) = (Vec3::new(3.0, 1.0, 0.0), Vec3::new(-1.0, 2.0, 0.0));
+    let (g1, g2) = (synth::white(8192, 40), synth::white(8192, 41));
+    let weak: Vec<f64> = g2.iter().map(|v| v * 0.7).collect();
+    let x = synth::render(&array.mics, &[(s1, &g1), (s2, &weak)], FS, C, None, 0.0, 2);
+    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+    bank.whiten(&synth::spectra_at(&x, 2048, 2048));
+    bank.compute();
+    let p = bank.pairs[0];
+    let at = |bank: &gcc::GccBank, tau: f64| {
+        gcc::lerp(
+            &bank.table,
+            (p.offset + p.half) as f64 + tau * bank.steps_per_second,
+        )
+    };
+    let (t1, t2) = (array.tdoa(&s1, 0, 1, C), array.tdoa(&s2, 0, 1, C));
+    let (before1, before2) = (at(&bank, t1), at(&bank, t2));
+    assert!(before1 > before2 && before2 > 0.2, "{before1} {before2}");
+    bank.remove(&[t1], 2.0 / (4000.0 - 1000.0));
+    assert!(at(&bank, t1).abs() < 0.05, "residual {}", at(&bank, t1));
+    assert!(
+        at(&bank, t2) > 0.8 * before2,
+        "{} vs {before2}",
+        at(&bank, t2)
+    );
+    bank.remove(&[t2], 2.0 / (4000.0 - 1000.0));
+    let rest = bank.table[p.offset..=p.offset + 2 * p.half]
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(
+        rest < 0.5 * before2,
+        "largest residual {rest}, peaks {before1} {before2}"
+    );
+    bank.restore();
+    assert_eq!(at(&bank, t1), before1);
+}
+
+#[test]
 fn sliding_max_matches_brute_force() {
     let array = MicArray::new(
         "a",
@@ -121,11 +168,11 @@ fn sliding_max_matches_brute_force() {
         let mut out = vec![0.0; len];
         let mut work = vec![0.0; 2 * len];
         bank.max_filter(&[w], &mut out, &mut work);
-        for i in 0..len {
+        for (i, got) in out.iter().enumerate() {
             let lo = i.saturating_sub(w);
             let hi = (i + w).min(len - 1);
             let m = bank.table[lo..=hi].iter().copied().fold(f64::MIN, f64::max);
-            assert_eq!(out[i], m, "w {w} i {i}");
+            assert_eq!(*got, m, "w {w} i {i}");
         }
     }
 }
