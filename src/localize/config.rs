@@ -175,7 +175,7 @@ impl Default for PeakConfig {
     fn default() -> Self {
         Self {
             min_power: 0.05,
-            relative_power: 0.3,
+            relative_power: 0.2,
             prominence_sigmas: 5.0,
             removal_width: 2.0,
             exclusion_angle_deg: 10.0,

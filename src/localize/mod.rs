@@ -307,6 +307,7 @@ fn process_array(
             let Some((d, p)) = searches.directions.search(bank, found, exclusion) else {
                 break;
             };
+            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
             if !accept.accepts(p, map_mean) {
                 break;
             }
@@ -333,6 +334,7 @@ fn process_array(
             let Some((x, p)) = searches.positions.search(bank, found, rng) else {
                 break;
             };
+            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
             if !accept.accepts(p, map_mean) {
                 break;
             }
