@@ -1,1 +1,351 @@
-//! (in progress)
+//! The acoustic localiser: GCC-PHAT per microphone pair, SRP-PHAT by table look-up, a
+//! hierarchical geodesic-sphere search for directions and stochastic region contraction for 3-D
+//! positions, several sources per frame by removing each found source from the GCCs, and a
+//! per-frame voice-activity score.
+//!
+//! Pairs never cross arrays: each array is localised on its own (spec 000 section 2.6) and the
+//! tracker fuses the arrays.
+
+mod activity;
+mod config;
+mod directions;
+mod gcc;
+mod geodesic;
+mod region_contraction;
+#[cfg(test)]
+mod synth;
+#[cfg(test)]
+mod tests;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+pub use config::{
+    ActivityConfig, ConfigError, DirectionConfig, LocalizerConfig, PeakConfig, PositionConfig,
+    SearchMode,
+};
+
+use activity::ActivityTracker;
+use directions::DirectionSearch;
+use gcc::GccBank;
+use region_contraction::PositionSearch;
+
+use crate::dsp::MultiSpectrum;
+use crate::geometry::{Layout, MicArray, Vec3, azimuth_of, elevation_of};
+
+/// A direction of arrival seen from an array's centroid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DirectionCandidate {
+    /// Unit vector from the array centroid towards the source. For a linear array only the angle
+    /// to the array axis is observed; this is then the direction on that cone lying in the
+    /// half-plane through the axis towards the region centre (see `directions` module docs).
+    pub direction: Vec3,
+    /// Azimuth of `direction` (radians, x-y plane from +x towards +y).
+    pub azimuth: f64,
+    /// Elevation of `direction` (radians, from the x-y plane towards +z).
+    pub elevation: f64,
+    /// Normalised SRP (mean GCC-PHAT per pair, in [-1, 1]) where the candidate was found.
+    pub power: f64,
+}
+
+/// A 3-D position candidate (world frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PositionCandidate {
+    /// Position in metres.
+    pub position: Vec3,
+    /// Normalised SRP (mean GCC-PHAT per pair, in [-1, 1]) at the position.
+    pub power: f64,
+}
+
+/// What one array saw in one localisation frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArrayObservation {
+    /// Index of the array in the layout.
+    pub array: usize,
+    /// Direction candidates, strongest first (empty when the direction search is off).
+    pub doas: Vec<DirectionCandidate>,
+    /// Position candidates, strongest first (empty when the position search is off).
+    pub points: Vec<PositionCandidate>,
+    /// Voice-activity score in [0, 1].
+    pub activity: f64,
+}
+
+/// The searches of an array that can localise (two or more microphones).
+struct Searches {
+    directions: DirectionSearch,
+    positions: PositionSearch,
+}
+
+/// Everything the localiser keeps for one array with audio channels.
+struct ArrayState {
+    index: usize,
+    channels: Vec<usize>,
+    /// Whitened spectra and GCC tables (no pairs for a single microphone: power only).
+    bank: GccBank,
+    searches: Option<Searches>,
+    activity: ActivityTracker,
+    tdoas: Vec<f64>,
+    found: Vec<Vec3>,
+}
+
+/// The localiser stage: one state per array, no I/O, no threads, no clocks.
+pub struct Localizer {
+    cfg: LocalizerConfig,
+    arrays: Vec<ArrayState>,
+    rng: ChaCha8Rng,
+    channel_count: usize,
+    band: (usize, usize),
+    sample_rate: f64,
+}
+
+impl Localizer {
+    /// A localiser for `layout`; `seed` drives the stochastic position search.
+    pub fn new(layout: &Layout, cfg: &LocalizerConfig, seed: u64) -> Result<Self, ConfigError> {
+        cfg.validate(layout)?;
+        let sample_rate = f64::from(layout.sample_rate);
+        let bin_hz = sample_rate / cfg.frame as f64;
+        let band = (
+            ((cfg.band_low_hz / bin_hz).ceil() as usize).max(1),
+            ((cfg.band_high_hz / bin_hz).floor() as usize).min(cfg.frame / 2 - 1),
+        );
+        let mut localizer = Self {
+            cfg: cfg.clone(),
+            arrays: Vec::new(),
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            channel_count: 0,
+            band,
+            sample_rate,
+        };
+        localizer.set_layout(layout)?;
+        Ok(localizer)
+    }
+
+    /// The analysis frame (samples) the spectra must come from.
+    pub fn frame_size(&self) -> usize {
+        self.cfg.frame
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &LocalizerConfig {
+        &self.cfg
+    }
+
+    /// Rebuilds every geometry-dependent table for a recalibrated layout. The noise floors of
+    /// arrays whose channels did not change are kept.
+    pub fn set_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
+        if f64::from(layout.sample_rate) != self.sample_rate {
+            return Err(ConfigError::new(
+                "frame",
+                "the layout's sample rate changed; build a new localiser",
+            ));
+        }
+        self.cfg.validate(layout)?;
+        let mut old = std::mem::take(&mut self.arrays);
+        for (index, array) in layout.arrays.iter().enumerate() {
+            if array.channels.is_empty() {
+                continue;
+            }
+            let activity = old
+                .iter_mut()
+                .find(|s| s.index == index && s.channels == array.channels)
+                .map(|s| s.activity.clone())
+                .unwrap_or_else(|| ActivityTracker::new(&self.cfg.activity));
+            self.arrays
+                .push(self.array_state(index, array, layout, activity));
+        }
+        old.clear();
+        self.channel_count = layout.channel_count();
+        Ok(())
+    }
+
+    fn array_state(
+        &self,
+        index: usize,
+        array: &MicArray,
+        layout: &Layout,
+        activity: ActivityTracker,
+    ) -> ArrayState {
+        let c = layout.speed_of_sound;
+        let bank = GccBank::new(
+            array,
+            self.cfg.frame,
+            self.band,
+            self.cfg.interpolation,
+            self.sample_rate,
+            c,
+        );
+        let searches = (array.len() >= 2).then(|| {
+            let directions = DirectionSearch::new(
+                array,
+                &bank,
+                layout.region,
+                &self.cfg.directions.levels,
+                self.cfg.directions.refine_step_deg.to_radians(),
+                c,
+            );
+            let positions = PositionSearch::new(
+                array,
+                &bank,
+                layout.region,
+                &self.cfg.positions,
+                c,
+                directions.mirror_normal(),
+            );
+            Searches {
+                directions,
+                positions,
+            }
+        });
+        ArrayState {
+            index,
+            channels: array.channels.clone(),
+            tdoas: vec![0.0; bank.len()],
+            found: Vec::with_capacity(self.cfg.max_candidates),
+            bank,
+            searches,
+            activity,
+        }
+    }
+
+    /// Localises one frame: `spectra` holds the one-sided spectra of every audio channel of the
+    /// layout (Hann-windowed frames of `frame_size()` samples). Returns one observation per array
+    /// with audio channels. Spectra of the wrong shape give observations without candidates.
+    pub fn process(&mut self, spectra: &MultiSpectrum) -> Vec<ArrayObservation> {
+        let shape_ok =
+            spectra.bins() == self.cfg.frame / 2 + 1 && spectra.channels() >= self.channel_count;
+        if !shape_ok {
+            tracing::warn!(
+                bins = spectra.bins(),
+                channels = spectra.channels(),
+                "localiser: spectra do not match the frame size or the layout's channels"
+            );
+        }
+        let mut out = Vec::with_capacity(self.arrays.len());
+        for state in &mut self.arrays {
+            let mut obs = ArrayObservation {
+                array: state.index,
+                doas: Vec::new(),
+                points: Vec::new(),
+                activity: 0.0,
+            };
+            if shape_ok {
+                process_array(state, spectra, &self.cfg, &mut self.rng, &mut obs);
+            }
+            out.push(obs);
+        }
+        out
+    }
+}
+
+/// Decides whether a search result is accepted as a candidate.
+struct Acceptance {
+    min_power: f64,
+    relative: f64,
+    prominence: f64,
+    first: Option<f64>,
+}
+
+impl Acceptance {
+    fn new(cfg: &PeakConfig, null_std: f64) -> Self {
+        Self {
+            min_power: cfg.min_power,
+            relative: cfg.relative_power,
+            prominence: cfg.prominence_sigmas * null_std,
+            first: None,
+        }
+    }
+
+    /// Whether a peak of `power` found in a map (after the removal of the sources accepted so
+    /// far) whose coarse-grid mean is `map_mean` is a source.
+    fn accepts(&mut self, power: f64, map_mean: f64) -> bool {
+        let ok = power.is_finite()
+            && power >= self.min_power
+            && power >= map_mean + self.prominence
+            && self.first.is_none_or(|f| power >= self.relative * f);
+        if ok && self.first.is_none() {
+            self.first = Some(power);
+        }
+        ok
+    }
+}
+
+fn process_array(
+    state: &mut ArrayState,
+    spectra: &MultiSpectrum,
+    cfg: &LocalizerConfig,
+    rng: &mut ChaCha8Rng,
+    obs: &mut ArrayObservation,
+) {
+    let power = state.bank.whiten(spectra);
+    if ActivityTracker::is_silent(&cfg.activity, power) {
+        return;
+    }
+    let snr = state.activity.update(power);
+    let Some(searches) = state.searches.as_mut() else {
+        obs.activity = ActivityTracker::score(&cfg.activity, snr, None);
+        return;
+    };
+    let bank = &mut state.bank;
+    bank.compute();
+    let stats = searches.directions.grid_stats(bank);
+    obs.activity = ActivityTracker::score(&cfg.activity, snr, Some(stats.max));
+    if obs.activity < cfg.activity.min_activity {
+        return;
+    }
+    let removal = cfg.peaks.removal_width / (cfg.band_high_hz - cfg.band_low_hz);
+    let exclusion = cfg.peaks.exclusion_angle_deg.to_radians();
+    let sps = bank.steps_per_second;
+    let found = &mut state.found;
+    if cfg.search.directions() {
+        let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
+        let mut map_mean = stats.mean;
+        found.clear();
+        while found.len() < cfg.max_candidates {
+            if !found.is_empty() {
+                map_mean = searches.directions.grid_stats(bank).mean;
+            }
+            let Some((d, p)) = searches.directions.search(bank, found, exclusion) else {
+                break;
+            };
+            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
+            if !accept.accepts(p, map_mean) {
+                break;
+            }
+            searches.directions.tdoas(&d, sps, &mut state.tdoas);
+            bank.remove(&state.tdoas, removal);
+            found.push(d);
+            obs.doas.push(DirectionCandidate {
+                direction: d,
+                azimuth: azimuth_of(&d),
+                elevation: elevation_of(&d),
+                power: p,
+            });
+        }
+        bank.restore();
+    }
+    if cfg.search.positions() {
+        let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
+        let mut map_mean = stats.mean;
+        found.clear();
+        while found.len() < cfg.max_candidates {
+            if !found.is_empty() {
+                map_mean = searches.directions.grid_stats(bank).mean;
+            }
+            let Some((x, p)) = searches.positions.search(bank, found, rng) else {
+                break;
+            };
+            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
+            if !accept.accepts(p, map_mean) {
+                break;
+            }
+            searches.positions.tdoas(&x, sps, &mut state.tdoas);
+            bank.remove(&state.tdoas, removal);
+            found.push(x);
+            obs.points.push(PositionCandidate {
+                position: x,
+                power: p,
+            });
+        }
+        bank.restore();
+    }
+}

@@ -1,0 +1,398 @@
+//! Configuration of the localiser and its validation.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::Layout;
+
+/// Invalid localiser configuration: names the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("localize.{field}: {message}")]
+pub struct ConfigError {
+    /// Dotted path of the offending field inside the localiser configuration, e.g. `positions.kept_points`.
+    pub field: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+impl ConfigError {
+    /// An error about `field`.
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Which searches the localiser runs on every frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum SearchMode {
+    /// Directions of arrival only (hierarchical geodesic-sphere scan).
+    Directions,
+    /// 3-D position candidates only (stochastic region contraction).
+    Positions,
+    /// Both directions and positions.
+    Both,
+}
+
+impl SearchMode {
+    /// Whether the direction search runs.
+    pub fn directions(self) -> bool {
+        matches!(self, Self::Directions | Self::Both)
+    }
+
+    /// Whether the position search runs.
+    pub fn positions(self) -> bool {
+        matches!(self, Self::Positions | Self::Both)
+    }
+}
+
+/// The SRP-PHAT localiser: GCC-PHAT per microphone pair, then direction and/or position search.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct LocalizerConfig {
+    /// Analysis frame in samples (Hann window and FFT length); 2048 = 128 ms at 16 kHz as in the paper.
+    pub frame: usize,
+    /// Lower edge (Hz) of the band used for GCC/SRP; 1 kHz as in the paper, which keeps the
+    /// reverberant, poorly resolved low frequencies out of the localiser.
+    pub band_low_hz: f64,
+    /// Upper edge (Hz) of the band used for GCC/SRP (at most half the sample rate).
+    pub band_high_hz: f64,
+    /// GCC lags are tabulated this many times finer than one sample (band-limited interpolation).
+    pub interpolation: usize,
+    /// Most candidates reported per array and frame (for each search).
+    pub max_candidates: usize,
+    /// Which searches to run: "directions", "positions" or "both".
+    pub search: SearchMode,
+    /// Direction search on geodesic spheres.
+    pub directions: DirectionConfig,
+    /// 3-D position search by stochastic region contraction.
+    pub positions: PositionConfig,
+    /// Acceptance of peaks and removal of found sources before the next search.
+    pub peaks: PeakConfig,
+    /// Per-frame voice-activity score.
+    pub activity: ActivityConfig,
+}
+
+impl Default for LocalizerConfig {
+    fn default() -> Self {
+        Self {
+            frame: 2048,
+            band_low_hz: 1000.0,
+            band_high_hz: 4000.0,
+            interpolation: 10,
+            max_candidates: 3,
+            search: SearchMode::Both,
+            directions: DirectionConfig::default(),
+            positions: PositionConfig::default(),
+            peaks: PeakConfig::default(),
+            activity: ActivityConfig::default(),
+        }
+    }
+}
+
+/// Hierarchical direction search (as ODAS SRP-PHAT-HSDA).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct DirectionConfig {
+    /// Subdivision levels of the icosahedral geodesic spheres scanned coarse to fine (level L has
+    /// 10*4^L+2 points: 2 -> 162, 4 -> 2562); each level after the first is scanned only around the
+    /// best point of the previous one. Strictly increasing, at most 6.
+    pub levels: Vec<u32>,
+    /// The best point of the finest level is refined by a local pattern search down to this step (degrees).
+    pub refine_step_deg: f64,
+}
+
+impl Default for DirectionConfig {
+    fn default() -> Self {
+        Self {
+            levels: vec![2, 4],
+            refine_step_deg: 0.1,
+        }
+    }
+}
+
+/// Stochastic region contraction (Do, Silverman & Yu 2007).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct PositionConfig {
+    /// J0: random points drawn in the whole search box at the start of each search.
+    pub initial_points: usize,
+    /// N: points kept and replenished while the box contracts.
+    pub kept_points: usize,
+    /// The contraction stops when the box is smaller than this (cubic metres).
+    pub min_volume_m3: f64,
+    /// The contraction stops after this many SRP evaluations per search (including J0).
+    pub max_evaluations: usize,
+    /// Half the side (metres) of the cube around the array searched when the layout has no region.
+    pub default_half_size_m: f64,
+    /// Points closer than this (metres) to a microphone of the array are not considered.
+    pub min_range_m: f64,
+    /// Later searches of the same frame draw no points within this distance (metres) of an
+    /// accepted candidate.
+    pub exclusion_radius_m: f64,
+}
+
+impl Default for PositionConfig {
+    fn default() -> Self {
+        Self {
+            initial_points: 2000,
+            kept_points: 100,
+            min_volume_m3: 1e-4,
+            max_evaluations: 5000,
+            default_half_size_m: 3.0,
+            min_range_m: 0.3,
+            exclusion_radius_m: 0.3,
+        }
+    }
+}
+
+/// When a peak counts as a source, and how a found source is removed before searching again.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct PeakConfig {
+    /// Smallest normalised SRP (mean GCC-PHAT per pair, in [-1, 1]) a candidate must reach.
+    pub min_power: f64,
+    /// Candidates after the first must reach this fraction of the first candidate's SRP.
+    pub relative_power: f64,
+    /// Every candidate must exceed the mean SRP over the coarse direction grid of the map it was
+    /// found in (after removing the candidates before it) by this many null standard deviations
+    /// 1 / sqrt(2 * band bins * pairs), the spread of the SRP of incoherent signals (the map's own
+    /// spread is dominated by the main lobes of the sources).
+    pub prominence_sigmas: f64,
+    /// A found source is removed from each pair's GCC by subtracting the GCC a lone source at its
+    /// lag would give (scaled to the GCC there) within this half-width of the lag, in units of
+    /// the band kernel's envelope half-width 1 / (band_high_hz - band_low_hz).
+    pub removal_width: f64,
+    /// Later direction searches of the same frame skip directions within this angle (degrees) of an
+    /// accepted candidate (for linear arrays: cone angles within it).
+    pub exclusion_angle_deg: f64,
+}
+
+impl Default for PeakConfig {
+    fn default() -> Self {
+        Self {
+            min_power: 0.05,
+            relative_power: 0.2,
+            prominence_sigmas: 5.0,
+            removal_width: 2.0,
+            exclusion_angle_deg: 10.0,
+        }
+    }
+}
+
+/// Voice activity from energy above a tracked noise floor and the SRP peak.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct ActivityConfig {
+    /// The noise floor is the minimum in-band power over this many past frames (minimum statistics);
+    /// longer than the longest expected stretch of uninterrupted speech.
+    pub noise_window_frames: usize,
+    /// Energy-to-floor ratio (dB) at which the energy score is one half.
+    pub snr_midpoint_db: f64,
+    /// Width (dB) of the energy score's sigmoid.
+    pub snr_scale_db: f64,
+    /// Normalised SRP of the strongest peak at which the coherence score is one half.
+    pub coherence_midpoint: f64,
+    /// Width of the coherence score's sigmoid (normalised SRP units).
+    pub coherence_scale: f64,
+    /// Frames whose mean in-band power per sample is below this (full scale = 1) are silent.
+    pub min_power: f64,
+    /// Frames whose activity is below this report no candidates (0 reports whatever passes the
+    /// peak tests).
+    pub min_activity: f64,
+}
+
+impl Default for ActivityConfig {
+    fn default() -> Self {
+        Self {
+            noise_window_frames: 24,
+            snr_midpoint_db: 6.0,
+            snr_scale_db: 2.0,
+            coherence_midpoint: 0.1,
+            coherence_scale: 0.03,
+            min_power: 1e-10,
+            min_activity: 0.0,
+        }
+    }
+}
+
+fn check(ok: bool, field: &str, message: &str) -> Result<(), ConfigError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, message))
+    }
+}
+
+fn finite_in(v: f64, lo: f64, hi: f64) -> bool {
+    v.is_finite() && v >= lo && v <= hi
+}
+
+impl LocalizerConfig {
+    /// Checks the configuration against itself and the layout's sample rate.
+    pub fn validate(&self, layout: &Layout) -> Result<(), ConfigError> {
+        let nyquist = f64::from(layout.sample_rate) / 2.0;
+        check(
+            (64..=65536).contains(&self.frame) && self.frame.is_multiple_of(2),
+            "frame",
+            "must be an even number of samples in 64..=65536",
+        )?;
+        check(
+            finite_in(self.band_low_hz, 0.0, nyquist),
+            "band_low_hz",
+            "must be between 0 and half the sample rate",
+        )?;
+        check(
+            finite_in(self.band_high_hz, self.band_low_hz, nyquist)
+                && self.band_high_hz > self.band_low_hz,
+            "band_high_hz",
+            "must be above band_low_hz and at most half the sample rate",
+        )?;
+        let bin_hz = f64::from(layout.sample_rate) / self.frame as f64;
+        check(
+            (self.band_high_hz - self.band_low_hz) / bin_hz >= 8.0,
+            "band_high_hz",
+            "the band must span at least 8 frequency bins",
+        )?;
+        check(
+            (1..=64).contains(&self.interpolation),
+            "interpolation",
+            "must be in 1..=64",
+        )?;
+        check(
+            (1..=16).contains(&self.max_candidates),
+            "max_candidates",
+            "must be in 1..=16",
+        )?;
+        self.validate_directions()?;
+        self.validate_positions()?;
+        self.validate_peaks()?;
+        self.validate_activity()
+    }
+
+    fn validate_directions(&self) -> Result<(), ConfigError> {
+        let d = &self.directions;
+        check(
+            !d.levels.is_empty()
+                && d.levels.iter().all(|&l| l <= 6)
+                && d.levels.windows(2).all(|w| w[0] < w[1]),
+            "directions.levels",
+            "must be a non-empty, strictly increasing list of levels in 0..=6",
+        )?;
+        check(
+            finite_in(d.refine_step_deg, 1e-3, 10.0),
+            "directions.refine_step_deg",
+            "must be between 0.001 and 10 degrees",
+        )
+    }
+
+    fn validate_positions(&self) -> Result<(), ConfigError> {
+        let p = &self.positions;
+        check(
+            (2..=1_000_000).contains(&p.kept_points),
+            "positions.kept_points",
+            "must be in 2..=1000000",
+        )?;
+        check(
+            p.initial_points >= p.kept_points && p.initial_points <= 1_000_000,
+            "positions.initial_points",
+            "must be at least kept_points and at most 1000000",
+        )?;
+        check(
+            p.max_evaluations >= p.initial_points && p.max_evaluations <= 100_000_000,
+            "positions.max_evaluations",
+            "must be at least initial_points and at most 1e8",
+        )?;
+        check(
+            p.min_volume_m3.is_finite() && p.min_volume_m3 > 0.0,
+            "positions.min_volume_m3",
+            "must be a positive number",
+        )?;
+        check(
+            finite_in(p.default_half_size_m, 0.01, 1000.0),
+            "positions.default_half_size_m",
+            "must be between 0.01 and 1000 m",
+        )?;
+        check(
+            finite_in(p.min_range_m, 0.0, 100.0),
+            "positions.min_range_m",
+            "must be between 0 and 100 m",
+        )?;
+        check(
+            finite_in(p.exclusion_radius_m, 0.0, 100.0),
+            "positions.exclusion_radius_m",
+            "must be between 0 and 100 m",
+        )
+    }
+
+    fn validate_peaks(&self) -> Result<(), ConfigError> {
+        let p = &self.peaks;
+        check(
+            finite_in(p.min_power, -1.0, 1.0),
+            "peaks.min_power",
+            "must be in [-1, 1]",
+        )?;
+        check(
+            finite_in(p.relative_power, 0.0, 1.0),
+            "peaks.relative_power",
+            "must be in [0, 1]",
+        )?;
+        check(
+            finite_in(p.prominence_sigmas, 0.0, 100.0),
+            "peaks.prominence_sigmas",
+            "must be in [0, 100]",
+        )?;
+        check(
+            finite_in(p.removal_width, 0.01, 100.0),
+            "peaks.removal_width",
+            "must be in [0.01, 100]",
+        )?;
+        check(
+            finite_in(p.exclusion_angle_deg, 0.0, 179.0),
+            "peaks.exclusion_angle_deg",
+            "must be in [0, 179] degrees",
+        )
+    }
+
+    fn validate_activity(&self) -> Result<(), ConfigError> {
+        let a = &self.activity;
+        check(
+            (1..=100_000).contains(&a.noise_window_frames),
+            "activity.noise_window_frames",
+            "must be in 1..=100000",
+        )?;
+        check(
+            finite_in(a.snr_midpoint_db, -100.0, 100.0),
+            "activity.snr_midpoint_db",
+            "must be in [-100, 100] dB",
+        )?;
+        check(
+            finite_in(a.snr_scale_db, 0.01, 100.0),
+            "activity.snr_scale_db",
+            "must be in [0.01, 100] dB",
+        )?;
+        check(
+            finite_in(a.coherence_midpoint, -1.0, 1.0),
+            "activity.coherence_midpoint",
+            "must be in [-1, 1]",
+        )?;
+        check(
+            finite_in(a.coherence_scale, 1e-4, 10.0),
+            "activity.coherence_scale",
+            "must be in [0.0001, 10]",
+        )?;
+        check(
+            finite_in(a.min_power, 0.0, 1.0),
+            "activity.min_power",
+            "must be in [0, 1]",
+        )?;
+        check(
+            finite_in(a.min_activity, 0.0, 1.0),
+            "activity.min_activity",
+            "must be in [0, 1]",
+        )
+    }
+}

@@ -1,0 +1,371 @@
+//! GCC-PHAT of every microphone pair of one array, tabulated on a fine lag grid.
+//!
+//! Per frame: the band bins of each channel are whitened (PHAT, Y / |Y|), each pair's cross-spectrum
+//! W_a W_b^* is inverse transformed, the integer lags inside the physically possible range
+//! |tau| <= d_ab / c are kept and interpolated to `interpolation` points per sample with a
+//! Kaiser-windowed sinc (band-limited interpolation; the band stays well below Nyquist). With the
+//! forward FFT kernel e^{-j omega t}, a source with times of flight tau_a, tau_b gives
+//! W_a W_b^* ~ e^{-j omega (tau_a - tau_b)}, so the GCC r_ab(tau) = sum_k Re(W_a W_b^* e^{+j omega_k tau})
+//! peaks at tau = tau_a - tau_b (spec 000 section 2.3 with the corrected sign). Values are
+//! normalised by the number of band bins, so r = 1 for a perfectly coherent pair.
+
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+use realfft::{ComplexToReal, RealFftPlanner};
+
+use crate::dsp::{Complex, MultiSpectrum};
+use crate::geometry::MicArray;
+
+/// Sinc taps on each side of the interpolation point.
+const SINC_TAPS: usize = 8;
+/// Kaiser window shape of the interpolation kernel.
+const KAISER_BETA: f64 = 8.0;
+/// Extra lag range (samples) tabulated beyond d_ab / c, so lookups at the physical limit interpolate.
+const LAG_MARGIN_SAMPLES: f64 = 1.0;
+
+/// One microphone pair and where its fine GCC table lives.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Pair {
+    /// First microphone (index within the array).
+    pub a: usize,
+    /// Second microphone.
+    pub b: usize,
+    /// Start of the pair's table in the concatenated storage.
+    pub offset: usize,
+    /// Fine index of zero lag; the table covers fine indices 0..=2*half (+1 guard entry).
+    pub half: usize,
+}
+
+/// Linear interpolation of the concatenated tables at absolute fine position `pos` (>= 0).
+#[inline(always)]
+pub(crate) fn lerp(table: &[f64], pos: f64) -> f64 {
+    let i = pos as usize;
+    let f = pos - i as f64;
+    let a = table[i];
+    a + f * (table[i + 1] - a)
+}
+
+/// GCC-PHAT tables of all pairs of one array, with the buffers to compute them in place.
+pub(crate) struct GccBank {
+    pub pairs: Vec<Pair>,
+    /// Concatenated fine tables, one per pair, each `2*half + 2` long (the last entry repeats the
+    /// one before so linear interpolation never reads past a table).
+    pub table: Vec<f64>,
+    /// The tables as computed, before any source removal.
+    pristine: Vec<f64>,
+    /// Fine table steps per second of lag (interpolation * sample rate).
+    pub steps_per_second: f64,
+    interpolation: usize,
+    band: (usize, usize),
+    channels: Vec<usize>,
+    white: Vec<Complex>,
+    cross: Vec<Complex>,
+    time: Vec<f64>,
+    lags: Vec<f64>,
+    kernels: Vec<f64>,
+    /// The band's PHAT kernel K(d) = mean over band bins of cos(omega_k d), at fine offsets d >= 0
+    /// (the normalised GCC of a lone, perfectly coherent source, centred on its lag).
+    kernel: Vec<f64>,
+    irfft: Arc<dyn ComplexToReal<f64>>,
+    scratch: Vec<Complex>,
+    norm: f64,
+    window_power: f64,
+    frame: usize,
+}
+
+/// Zeroth-order modified Bessel function of the first kind (power series).
+fn bessel_i0(x: f64) -> f64 {
+    let mut sum = 1.0;
+    let mut term = 1.0;
+    let q = x * x / 4.0;
+    for k in 1..64 {
+        term *= q / (k * k) as f64;
+        sum += term;
+        if term < sum * 1e-16 {
+            break;
+        }
+    }
+    sum
+}
+
+/// Kaiser-windowed sinc evaluated at `x` samples from the interpolation point.
+fn sinc_kernel(x: f64) -> f64 {
+    let k = SINC_TAPS as f64;
+    if x.abs() >= k {
+        return 0.0;
+    }
+    let sinc = if x.abs() < 1e-12 {
+        1.0
+    } else {
+        (PI * x).sin() / (PI * x)
+    };
+    let r = x / k;
+    sinc * bessel_i0(KAISER_BETA * (1.0 - r * r).sqrt()) / bessel_i0(KAISER_BETA)
+}
+
+/// Mean over bins k in `band` of cos(2 pi k d / frame), for a lag of `d` samples (closed form of
+/// the sum of cosines in arithmetic progression).
+fn band_kernel(band: (usize, usize), frame: usize, d: f64) -> f64 {
+    let n = (band.1 + 1 - band.0) as f64;
+    let b = 2.0 * PI * d / frame as f64;
+    let half = (b / 2.0).sin();
+    if half.abs() < 1e-12 {
+        return 1.0;
+    }
+    let a = b * band.0 as f64;
+    (n * b / 2.0).sin() / half * (a + (n - 1.0) * b / 2.0).cos() / n
+}
+
+impl GccBank {
+    /// Tables for every pair of `array`; `band` is the inclusive range of bins used.
+    pub fn new(
+        array: &MicArray,
+        frame: usize,
+        band: (usize, usize),
+        interpolation: usize,
+        sample_rate: f64,
+        speed_of_sound: f64,
+    ) -> Self {
+        let mut pairs = Vec::new();
+        let mut offset = 0;
+        for (a, b) in array.pairs() {
+            let max_lag = (array.mics[a] - array.mics[b]).norm() / speed_of_sound * sample_rate;
+            let half = ((max_lag + LAG_MARGIN_SAMPLES) * interpolation as f64).ceil() as usize;
+            pairs.push(Pair { a, b, offset, half });
+            offset += 2 * half + 2;
+        }
+        let max_half = pairs.iter().map(|p| p.half).max().unwrap_or(0);
+        let lag_span = max_half / interpolation + 2 + SINC_TAPS;
+        // kernels[r * 2K + i] weights integer lag (n0 - K + 1 + i) for the fraction r / I.
+        let mut kernels = Vec::with_capacity(interpolation * 2 * SINC_TAPS);
+        for r in 0..interpolation {
+            let frac = r as f64 / interpolation as f64;
+            for i in 0..2 * SINC_TAPS {
+                let n = i as f64 - (SINC_TAPS as f64 - 1.0);
+                kernels.push(sinc_kernel(frac - n));
+            }
+        }
+        let irfft = RealFftPlanner::<f64>::new().plan_fft_inverse(frame);
+        let scratch = irfft.make_scratch_vec();
+        let nb = band.1 + 1 - band.0;
+        let kernel = (0..2 * max_half + 4)
+            .map(|j| band_kernel(band, frame, j as f64 / interpolation as f64))
+            .collect();
+        let window_power: f64 = crate::dsp::hann_periodic(frame).iter().map(|w| w * w).sum();
+        Self {
+            pairs,
+            table: vec![0.0; offset],
+            pristine: vec![0.0; offset],
+            steps_per_second: interpolation as f64 * sample_rate,
+            interpolation,
+            band,
+            channels: array.channels.clone(),
+            white: vec![Complex::new(0.0, 0.0); nb * array.len()],
+            cross: vec![Complex::new(0.0, 0.0); frame / 2 + 1],
+            time: vec![0.0; frame],
+            lags: vec![0.0; 2 * lag_span + 1],
+            kernels,
+            kernel,
+            irfft,
+            scratch,
+            norm: 1.0 / (2.0 * nb as f64),
+            window_power,
+            frame,
+        }
+    }
+
+    /// Standard deviation of the normalised SRP (mean GCC over pairs) of incoherent signals:
+    /// each bin adds a cosine of uniform phase (variance 1/2), averaged over the band's bins and
+    /// over pairs, which are uncorrelated for independent microphone signals.
+    pub fn null_std(&self) -> f64 {
+        let nb = (self.band.1 + 1 - self.band.0) as f64;
+        1.0 / (2.0 * nb * self.pairs.len().max(1) as f64).sqrt()
+    }
+
+    /// Number of pairs.
+    pub fn len(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// Whitens the band bins of the array's channels and returns the mean in-band power per
+    /// sample and channel (Hann-window compensated; non-finite bins count as zero).
+    pub fn whiten(&mut self, spectra: &MultiSpectrum) -> f64 {
+        let nb = self.band.1 + 1 - self.band.0;
+        let mut energy = 0.0;
+        for (m, &ch) in self.channels.iter().enumerate() {
+            let bins = &spectra.channel(ch)[self.band.0..=self.band.1];
+            let out = &mut self.white[m * nb..(m + 1) * nb];
+            for (o, y) in out.iter_mut().zip(bins) {
+                // |Y|^2 without hypot: non-finite or overflowing bins fail the test and count as zero.
+                let p = y.re * y.re + y.im * y.im;
+                if p.is_finite() && p > 1e-60 {
+                    let mag = p.sqrt();
+                    *o = Complex::new(y.re / mag, y.im / mag);
+                    energy += p;
+                } else {
+                    *o = Complex::new(0.0, 0.0);
+                }
+            }
+        }
+        // One-sided bins of a Hann-windowed frame: sum |Y|^2 = (N/2) * sum w^2 * power per sample.
+        let power =
+            energy / (self.channels.len() as f64 * self.window_power * self.frame as f64 / 2.0);
+        if power.is_finite() { power } else { f64::MAX }
+    }
+
+    /// Computes every pair's fine GCC table from the whitened spectra.
+    pub fn compute(&mut self) {
+        let nb = self.band.1 + 1 - self.band.0;
+        let interp = self.interpolation as isize;
+        let taps = 2 * SINC_TAPS;
+        let lag_span = (self.lags.len() / 2) as isize;
+        let n = self.frame as isize;
+        for p in &self.pairs {
+            self.cross.fill(Complex::new(0.0, 0.0));
+            let wa = &self.white[p.a * nb..(p.a + 1) * nb];
+            let wb = &self.white[p.b * nb..(p.b + 1) * nb];
+            for ((c, x), y) in self.cross[self.band.0..=self.band.1]
+                .iter_mut()
+                .zip(wa)
+                .zip(wb)
+            {
+                *c = x * y.conj();
+            }
+            // A real signal's DC and Nyquist bins are real; the band never needs their imaginary parts.
+            self.cross[0].im = 0.0;
+            let last = self.cross.len() - 1;
+            self.cross[last].im = 0.0;
+            // Lengths are fixed at construction, so the transform cannot fail.
+            let _ =
+                self.irfft
+                    .process_with_scratch(&mut self.cross, &mut self.time, &mut self.scratch);
+            for (i, l) in self.lags.iter_mut().enumerate() {
+                let lag = i as isize - lag_span;
+                *l = self.time[lag.rem_euclid(n) as usize] * self.norm;
+            }
+            let half = p.half as isize;
+            let table = &mut self.table[p.offset..p.offset + 2 * p.half + 2];
+            for (j, t) in table.iter_mut().take(2 * p.half + 1).enumerate() {
+                let rel = j as isize - half;
+                let n0 = rel.div_euclid(interp);
+                let r = rel.rem_euclid(interp) as usize;
+                let kern = &self.kernels[r * taps..(r + 1) * taps];
+                let start = (n0 + lag_span - SINC_TAPS as isize + 1) as usize;
+                *t = kern
+                    .iter()
+                    .zip(&self.lags[start..start + taps])
+                    .map(|(k, v)| k * v)
+                    .sum();
+            }
+            table[2 * p.half + 1] = table[2 * p.half];
+        }
+        self.pristine.copy_from_slice(&self.table);
+    }
+
+    /// Restores the tables as computed, undoing every removal.
+    pub fn restore(&mut self) {
+        self.table.copy_from_slice(&self.pristine);
+    }
+
+    /// Removes a found source before the next search (CLEAN): subtracts from each pair's GCC the
+    /// GCC a lone source at lag `tdoa_s[q]` would give, alpha * K(tau - tdoa), with alpha the
+    /// pair's GCC at that lag and K the band's PHAT kernel, within `half_width_s` of the lag.
+    /// Other sources keep their peaks unless their lags nearly coincide; zeroing a window
+    /// instead would wipe most of a small array's short lag range.
+    pub fn remove(&mut self, tdoa_s: &[f64], half_width_s: f64) {
+        let w = half_width_s * self.steps_per_second;
+        for (q, p) in self.pairs.iter().enumerate() {
+            let end = 2 * p.half;
+            let centre = (p.half as f64 + tdoa_s[q] * self.steps_per_second).clamp(0.0, end as f64);
+            let table = &mut self.table[p.offset..p.offset + end + 2];
+            let alpha = lerp(table, centre).max(0.0);
+            let lo = (centre - w).ceil().max(0.0) as usize;
+            let hi = ((centre + w).floor() as usize).min(end);
+            for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                *t -= alpha * lerp(&self.kernel, (j as f64 - centre).abs());
+            }
+            table[end + 1] = table[end];
+        }
+    }
+
+    /// Writes into `out` (same layout as `table`) each pair's table max-filtered over
+    /// +-`widths[q]` fine steps: the best value anywhere in a grid cell, so a coarse scan cannot
+    /// step over a narrow peak (ODAS's maximum sliding window). `work` needs twice the longest table's length.
+    pub fn max_filter(&self, widths: &[usize], out: &mut [f64], work: &mut [f64]) {
+        for (q, p) in self.pairs.iter().enumerate() {
+            let len = 2 * p.half + 2;
+            let src = &self.table[p.offset..p.offset + len];
+            let dst = &mut out[p.offset..p.offset + len];
+            sliding_max(src, widths[q], dst, &mut work[..2 * len]);
+        }
+    }
+
+    /// Length of the longest pair table.
+    pub fn longest_table(&self) -> usize {
+        self.pairs.iter().map(|p| 2 * p.half + 2).max().unwrap_or(0)
+    }
+}
+
+/// Centred sliding maximum over +-`w` (clipped at the ends), van Herk/Gil-Werman in O(n).
+/// `work` must hold at least `2 * src.len()` values.
+fn sliding_max(src: &[f64], w: usize, dst: &mut [f64], work: &mut [f64]) {
+    let n = src.len();
+    if w == 0 || n == 0 {
+        dst.copy_from_slice(src);
+        return;
+    }
+    let max = |a: f64, b: f64| if a > b { a } else { b };
+    let block = 2 * w + 1;
+    let (prefix, suffix) = work.split_at_mut(n);
+    // prefix[i]: max from the start of i's block to i; suffix[i]: max from i to its block's end.
+    let mut start = 0;
+    while start < n {
+        let end = (start + block).min(n);
+        prefix[start] = src[start];
+        for i in start + 1..end {
+            prefix[i] = max(prefix[i - 1], src[i]);
+        }
+        suffix[end - 1] = src[end - 1];
+        for i in (start..end - 1).rev() {
+            suffix[i] = max(suffix[i + 1], src[i]);
+        }
+        start = end;
+    }
+    // A window of at most one block spans at most two blocks. Inside one block it either starts
+    // at the block's start (use the prefix of its end) or ends at the signal's end (the suffix).
+    let mut lo_block = 0;
+    for (i, d) in dst.iter_mut().enumerate() {
+        let lo = i.saturating_sub(w);
+        let hi = (i + w).min(n - 1);
+        if lo >= lo_block + block {
+            lo_block += block;
+        }
+        *d = if hi >= lo_block + block {
+            max(suffix[lo], prefix[hi])
+        } else if lo == lo_block {
+            prefix[hi]
+        } else {
+            suffix[lo]
+        };
+    }
+}
+
+/// Time-domain GCC of a pair computed directly (for tests): sum over band bins, normalised.
+#[cfg(test)]
+pub(crate) fn direct_gcc(
+    wa: &[Complex],
+    wb: &[Complex],
+    band: (usize, usize),
+    frame: usize,
+    tau_samples: f64,
+) -> f64 {
+    let nb = band.1 + 1 - band.0;
+    let mut acc = 0.0;
+    for (i, k) in (band.0..=band.1).enumerate() {
+        let omega = 2.0 * PI * k as f64 / frame as f64;
+        let c = wa[i] * wb[i].conj();
+        acc += (c * Complex::from_polar(1.0, omega * tau_samples)).re;
+    }
+    acc / nb as f64
+}
