@@ -1,0 +1,203 @@
+//! Tracker speed: Vo's standard linear-Gaussian scenario (100 steps, 1000 requested
+//! hypotheses) and one audio-visual step with 3 tracks, 10 audio and 3 visual measurements.
+
+use std::hint::black_box;
+
+use avsep::geometry::{Aabb, Camera, Pixel, Vec3};
+use avsep::track::{
+    BirthTerm, FilterKind, Gaussian, GlmbTracker, Measurement, MotionModel, Scan, SensorModel,
+    StepInput, Tracker, TrackerConfig,
+};
+use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
+use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, Poisson};
+
+/// [x vx y vy] at birth, birth step, last step (the scenario of tests/track.rs).
+const VO_TARGETS: [([f64; 4], usize, usize); 12] = [
+    ([0.0, 0.0, 0.0, -10.0], 1, 70),
+    ([400.0, -10.0, -600.0, 5.0], 1, 100),
+    ([-800.0, 20.0, -200.0, -5.0], 1, 70),
+    ([400.0, -7.0, -600.0, -4.0], 20, 100),
+    ([400.0, -2.5, -600.0, 10.0], 20, 100),
+    ([0.0, 7.5, 0.0, -5.0], 20, 100),
+    ([-800.0, 12.0, -200.0, 7.0], 40, 100),
+    ([-200.0, 15.0, 800.0, -10.0], 40, 100),
+    ([-800.0, 3.0, -200.0, 15.0], 60, 100),
+    ([-200.0, -3.0, 800.0, -15.0], 60, 100),
+    ([0.0, -20.0, 0.0, -15.0], 80, 100),
+    ([-200.0, 15.0, 800.0, -5.0], 80, 100),
+];
+
+fn vo_inputs(seed: u64) -> Vec<StepInput> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, 10.0).unwrap();
+    let clutter = Poisson::new(30.0).unwrap();
+    (1..=100usize)
+        .map(|k| {
+            let mut z = Vec::new();
+            for (x0, birth, death) in VO_TARGETS {
+                if k < birth || k > death {
+                    continue;
+                }
+                let n = (k - birth) as f64;
+                let (x, y) = (x0[0] + n * x0[1], x0[2] + n * x0[3]);
+                if rng.random::<f64>() < 0.98 {
+                    z.push(Measurement::Point {
+                        z: vec![x + noise.sample(&mut rng), y + noise.sample(&mut rng)],
+                    });
+                }
+            }
+            let n: f64 = clutter.sample(&mut rng);
+            for _ in 0..n as usize {
+                z.push(Measurement::Point {
+                    z: vec![
+                        rng.random_range(-1000.0..1000.0),
+                        rng.random_range(-1000.0..1000.0),
+                    ],
+                });
+            }
+            StepInput {
+                k: k as u64,
+                t: k as f64,
+                scans: vec![Scan {
+                    sensor: 0,
+                    measurements: z,
+                    activity: None,
+                }],
+            }
+        })
+        .collect()
+}
+
+fn vo_tracker() -> GlmbTracker<4> {
+    let mut cfg = TrackerConfig::default();
+    cfg.survival_probability = 0.99;
+    cfg.gate_probability = 0.9999999;
+    cfg.birth.from_measurements = false;
+    cfg.estimator.hysteresis_steps = 0;
+    cfg.glmb.requested_hypotheses = 1000;
+    cfg.glmb.max_hypotheses = 1000;
+    let motion = MotionModel::<4>::ConstantVelocity {
+        accel_std_m_per_s2: [5.0, 5.0, 0.0],
+    };
+    let sensor = SensorModel::GenericPoint {
+        h: DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]),
+        r: DMatrix::from_diagonal_element(2, 2, 100.0),
+        p_detect: 0.98,
+        clutter_rate: 30.0,
+        clutter_density: 1.0 / (2000.0 * 2000.0),
+    };
+    let births = [[0.1, 0.1], [400.0, -600.0], [-800.0, -200.0], [-200.0, 800.0]]
+        .iter()
+        .map(|p| BirthTerm {
+            density: Gaussian {
+                mean: SVector::<f64, 4>::new(p[0], p[1], 0.0, 0.0),
+                cov: SMatrix::<f64, 4, 4>::identity() * 100.0,
+            },
+            existence: 0.03,
+        })
+        .collect();
+    GlmbTracker::new(&cfg, motion, vec![sensor], None, births, 1).unwrap()
+}
+
+fn camera() -> Camera {
+    let k = Matrix3::new(1000.0, 0.0, 960.0, 0.0, 1000.0, 540.0, 0.0, 0.0, 1.0);
+    let (s, c) = 15f64.to_radians().sin_cos();
+    let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, -s, -c, 0.0, c, -s);
+    let centre = Vec3::new(3.0, 0.05, 2.0);
+    Camera::from_krt("cam", 1920.0, 1080.0, k, r, -(r * centre), None).unwrap()
+}
+
+/// One audio-visual step input: 3 speakers seen by the camera, 3 true + 7 clutter audio
+/// candidates.
+fn av_input(k: u64, rng: &mut ChaCha8Rng, room: &Aabb, sources: &[Vec3; 3]) -> StepInput {
+    let cam = camera();
+    let n = Normal::new(0.0, 1.0).unwrap();
+    let mut pixels = Vec::new();
+    let mut audio = Vec::new();
+    for s in sources {
+        let px = cam.project(s).unwrap();
+        pixels.push(Measurement::Pixel(Pixel::new(
+            px.x + 5.0 * n.sample(rng),
+            px.y + 5.0 * n.sample(rng),
+        )));
+        let e = Vec3::new(n.sample(rng), n.sample(rng), n.sample(rng)) * 0.1;
+        audio.push(Measurement::Position(s + e));
+    }
+    for _ in 0..7 {
+        audio.push(Measurement::Position(room.sample(rng)));
+    }
+    StepInput {
+        k,
+        t: k as f64 * 0.128,
+        scans: vec![
+            Scan {
+                sensor: 0,
+                measurements: pixels,
+                activity: None,
+            },
+            Scan {
+                sensor: 1,
+                measurements: audio,
+                activity: Some(1.0),
+            },
+        ],
+    }
+}
+
+fn benches(c: &mut Criterion) {
+    let inputs = vo_inputs(7);
+    c.bench_function("vo_scenario_100_steps_1000_hypotheses", |b| {
+        b.iter(|| {
+            let mut t = vo_tracker();
+            for input in &inputs {
+                black_box(t.step(input));
+            }
+        })
+    });
+
+    let room = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
+    let sensors = vec![
+        SensorModel::CameraPoint {
+            camera: Box::new(camera()),
+            noise_std_px: 10.0,
+            p_detect: 0.9,
+            clutter_rate: 1.0,
+            filter: FilterKind::Ukf,
+        },
+        SensorModel::AudioPosition {
+            noise_std_m: 0.1,
+            p_detect: 0.6,
+            min_p_detect: 0.02,
+            clutter_rate: 10.0,
+            clutter_volume_m3: room.volume(),
+        },
+    ];
+    let cfg = TrackerConfig::default();
+    let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
+    let mut tracker = GlmbTracker::new(&cfg, motion, sensors, Some(room), vec![], 3).unwrap();
+    let sources = [
+        Vec3::new(1.5, 3.0, 1.6),
+        Vec3::new(3.0, 2.5, 1.5),
+        Vec3::new(4.5, 3.5, 1.7),
+    ];
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for k in 0..40 {
+        tracker.step(&av_input(k, &mut rng, &room, &sources));
+    }
+    let tracks = tracker.step(&av_input(40, &mut rng, &room, &sources)).len();
+    assert_eq!(tracks, 3, "the benchmark needs 3 established tracks");
+    let input = av_input(41, &mut rng, &room, &sources);
+    c.bench_function("av_step_3_tracks_10_audio_3_visual", |b| {
+        b.iter_batched(
+            || tracker.clone(),
+            |mut t| black_box(t.step(&input)),
+            BatchSize::SmallInput,
+        )
+    });
+}
+
+criterion_group!(track, benches);
+criterion_main!(track);

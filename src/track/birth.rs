@@ -1,0 +1,571 @@
+//! Track birth: the paper's fixed birth points, and births seeded from the measurements that the
+//! tracks explain poorly (adaptive birth of Reuter et al. 2014, spec 000 3.9):
+//! `r_B(z) = min(r_max, (1 - r_U(z)) / sum_z' (1 - r_U(z')) * lambda_B)`.
+//!
+//! A camera detection is back-projected along its ray over the depths the region allows; when an
+//! audio measurement (direction, cone or 3-D candidate) agrees with some point of the ray, the
+//! birth sits there and is sharpened by that measurement. Lone audio candidates give births at
+//! the candidate, lone directions a birth along the direction with a broad range prior.
+
+use nalgebra::{Matrix3, SMatrix, Vector3};
+
+use super::config::{BirthConfig, UkfConfig};
+use super::filter::{prepare, update};
+use super::gaussian::{Gaussian, chi_square_quantile};
+use super::motion::{position_of, state_of};
+use super::sensor::{Observation, Sensor, ray_interval};
+use crate::geometry::{Aabb, Camera, Pixel, Ray, Vec3, direction_from_angles};
+
+/// A birth term: a track that may appear in the coming step, with its existence and density.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BirthTerm<const N: usize> {
+    /// Density of the new track's state.
+    pub density: Gaussian<N>,
+    /// Probability that the track is born (r_B).
+    pub existence: f64,
+}
+
+/// The configured fixed birth points over the 3-D state.
+pub(crate) fn fixed_births(cfg: &BirthConfig) -> Vec<BirthTerm<6>> {
+    cfg.fixed
+        .iter()
+        .map(|f| {
+            let p = Vec3::from(f.position);
+            BirthTerm {
+                density: Gaussian {
+                    mean: state_of(&p, &Vec3::zeros()),
+                    cov: block_cov(
+                        &(Matrix3::identity() * f.position_std_m.powi(2)),
+                        f.velocity_std_m_per_s,
+                    ),
+                },
+                existence: f.existence,
+            }
+        })
+        .collect()
+}
+
+/// One sensor's measurements of the step with the posterior probability that each was assigned
+/// to a track (r_U).
+pub(crate) struct BirthScan<'a> {
+    pub sensor: usize,
+    pub z: &'a [Vector3<f64>],
+    pub assoc: &'a [f64],
+}
+
+/// What the measurement-driven birth needs to know of the tracker.
+pub(crate) struct BirthContext<'a, const N: usize> {
+    pub cfg: &'a BirthConfig,
+    pub ukf: &'a UkfConfig,
+    pub region: Option<&'a Aabb>,
+    pub sensors: &'a [Sensor<N>],
+}
+
+/// Kinds of birth in decreasing order of trust.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Rank {
+    CameraWithAudio,
+    Camera,
+    Point,
+    Direction,
+}
+
+struct Candidate<const N: usize> {
+    density: Gaussian<N>,
+    weight: f64,
+    rank: Rank,
+}
+
+/// Births for the next step from this step's measurements. `confirmed` are the posteriors of
+/// the tracks the estimator reports: measurements inside their gate seed nothing.
+pub(crate) fn births_from_measurements<const N: usize>(
+    ctx: &BirthContext<N>,
+    scans: &[BirthScan],
+    confirmed: &[Gaussian<N>],
+) -> Vec<BirthTerm<N>> {
+    let (eligible, total) = eligibility(ctx, scans, confirmed);
+    if !(total > 0.0) || ctx.cfg.max_per_step == 0 {
+        return Vec::new();
+    }
+    let mut free = eligible.clone();
+    let mut cands: Vec<Candidate<N>> = Vec::new();
+    if N == 6 {
+        camera_births(ctx, scans, &mut free, &mut cands);
+    }
+    for (si, scan) in scans.iter().enumerate() {
+        let sensor = &ctx.sensors[scan.sensor];
+        for (j, z) in scan.z.iter().enumerate() {
+            if !free[si][j] {
+                continue;
+            }
+            let weight = 1.0 - scan.assoc[j].clamp(0.0, 1.0);
+            let made = match &sensor.obs {
+                Observation::Linear(_) => linear_birth(ctx, sensor, z).map(|d| (d, Rank::Point)),
+                Observation::Position if N == 6 => {
+                    let cov = sensor.r + Matrix3::identity() * ctx.cfg.position_std_m.powi(2);
+                    Some((make_density(&Vec3::from(*z), &cov, ctx.cfg), Rank::Point))
+                }
+                Observation::Direction { .. } | Observation::Cone { .. } if N == 6 => {
+                    direction_birth(ctx, sensor, z).map(|d| (d, Rank::Direction))
+                }
+                _ => None,
+            };
+            if let Some((density, rank)) = made {
+                cands.push(Candidate {
+                    density,
+                    weight,
+                    rank,
+                });
+            }
+        }
+    }
+    select(ctx.cfg, cands, total)
+}
+
+/// Which measurements may seed a birth, and the Reuter normaliser sum(1 - r_U).
+fn eligibility<const N: usize>(
+    ctx: &BirthContext<N>,
+    scans: &[BirthScan],
+    confirmed: &[Gaussian<N>],
+) -> (Vec<Vec<bool>>, f64) {
+    let mut total = 0.0;
+    let mut eligible = Vec::with_capacity(scans.len());
+    for scan in scans {
+        let sensor = &ctx.sensors[scan.sensor];
+        let preps: Vec<_> = confirmed
+            .iter()
+            .filter_map(|g| prepare(sensor, g, ctx.ukf))
+            .collect();
+        let flags = scan
+            .z
+            .iter()
+            .zip(scan.assoc)
+            .map(|(z, &a)| {
+                total += 1.0 - a.clamp(0.0, 1.0);
+                a <= ctx.cfg.max_association
+                    && !preps
+                        .iter()
+                        .any(|p| p.mahalanobis(&p.innovation(sensor, z)) <= sensor.birth_gate)
+            })
+            .collect();
+        eligible.push(flags);
+    }
+    (eligible, total)
+}
+
+/// Sorts, removes births that duplicate a better one, caps and assigns r_B.
+fn select<const N: usize>(
+    cfg: &BirthConfig,
+    mut cands: Vec<Candidate<N>>,
+    total: f64,
+) -> Vec<BirthTerm<N>> {
+    cands.sort_by(|a, b| a.rank.cmp(&b.rank).then(b.weight.total_cmp(&a.weight)));
+    let gate = chi_square_quantile(0.99, (N / 2).min(3));
+    let mut out: Vec<BirthTerm<N>> = Vec::new();
+    for c in cands {
+        if out.len() >= cfg.max_per_step {
+            break;
+        }
+        let duplicate = out.iter().any(|b| {
+            let d = position_of(&c.density.mean) - position_of(&b.density.mean);
+            let s = position_block(&c.density.cov) + position_block(&b.density.cov);
+            s.try_inverse()
+                .is_some_and(|si| d.dot(&(si * d)) < gate)
+        });
+        let existence = (c.weight / total * cfg.expected_births).min(cfg.max_existence);
+        if !duplicate && existence > 1e-9 {
+            out.push(BirthTerm {
+                density: c.density,
+                existence,
+            });
+        }
+    }
+    out
+}
+
+fn position_block<const N: usize>(p: &SMatrix<f64, N, N>) -> Matrix3<f64> {
+    let d = (N / 2).min(3);
+    let mut m = Matrix3::identity();
+    for i in 0..d {
+        for j in 0..d {
+            m[(i, j)] = p[(i, j)];
+        }
+    }
+    m
+}
+
+fn block_cov<const N: usize>(pos: &Matrix3<f64>, vel_std: f64) -> SMatrix<f64, N, N> {
+    let d = N / 2;
+    let mut c = SMatrix::<f64, N, N>::zeros();
+    for i in 0..d.min(3) {
+        for j in 0..d.min(3) {
+            c[(i, j)] = pos[(i, j)];
+        }
+        c[(d + i, d + i)] = vel_std * vel_std;
+    }
+    c
+}
+
+/// A birth density at `p` with position covariance `pos_cov` (plus the birth spread).
+fn make_density<const N: usize>(p: &Vec3, pos_cov: &Matrix3<f64>, cfg: &BirthConfig) -> Gaussian<N> {
+    let cov = pos_cov + Matrix3::identity() * cfg.position_std_m.powi(2);
+    Gaussian {
+        mean: state_of(p, &Vec3::zeros()),
+        cov: block_cov(&cov, cfg.velocity_std_m_per_s),
+    }
+}
+
+/// Covariance elongated along unit `axis`: sd `along` on it and `across` around it.
+fn elongated(axis: &Vec3, along: f64, across: f64) -> Matrix3<f64> {
+    let aa = axis * axis.transpose();
+    aa * along * along + (Matrix3::identity() - aa) * across * across
+}
+
+/// Depth interval of a ray: inside the region when known, else the configured range.
+fn depth_interval(ray: &Ray, region: Option<&Aabb>, range: [f64; 2]) -> Option<(f64, f64)> {
+    match region {
+        Some(r) => {
+            let (t0, t1) = ray_interval(&ray.origin, &ray.direction, r)?;
+            let t0 = t0.max(range[0].min(t1 * 0.5));
+            (t1 > t0).then_some((t0, t1))
+        }
+        None => Some((range[0], range[1])),
+    }
+}
+
+/// Births from camera detections: along the ray, at the depth an audio measurement picks when
+/// one agrees.
+fn camera_births<const N: usize>(
+    ctx: &BirthContext<N>,
+    scans: &[BirthScan],
+    free: &mut [Vec<bool>],
+    cands: &mut Vec<Candidate<N>>,
+) {
+    for (si, scan) in scans.iter().enumerate() {
+        let sensor = &ctx.sensors[scan.sensor];
+        let Some(camera) = sensor.camera() else {
+            continue;
+        };
+        let px_std = sensor.r[(0, 0)].sqrt();
+        for (j, z) in scan.z.iter().enumerate() {
+            if !free[si][j] {
+                continue;
+            }
+            let ray = camera.back_project(&Pixel::new(z[0], z[1]));
+            let Some((t0, t1)) = depth_interval(&ray, ctx.region, ctx.cfg.camera_depth_range_m)
+            else {
+                continue;
+            };
+            let partner = best_audio_partner(ctx, scans, free, &ray, (t0, t1));
+            let (t, rank) = match partner {
+                Some((_, _, t)) => (t, Rank::CameraWithAudio),
+                None => (0.5 * (t0 + t1), Rank::Camera),
+            };
+            let p = ray.at(t);
+            let across = lateral_std(camera, &p, px_std, t);
+            let pos = elongated(&ray.direction, 0.25 * (t1 - t0), across);
+            let mut density = make_density::<N>(&p, &pos, ctx.cfg);
+            if let Some((sa, ja, _)) = partner {
+                let a = &scans[sa];
+                if let Some((g, _)) = update(&ctx.sensors[a.sensor], &density, &a.z[ja], ctx.ukf)
+                {
+                    density = g;
+                }
+                free[sa][ja] = false;
+            }
+            free[si][j] = false;
+            cands.push(Candidate {
+                density,
+                weight: 1.0 - scan.assoc[j].clamp(0.0, 1.0),
+                rank,
+            });
+        }
+    }
+}
+
+/// Lateral position standard deviation of a pixel's ray at point `p`.
+fn lateral_std(camera: &Camera, p: &Vec3, px_std: f64, depth: f64) -> f64 {
+    camera
+        .project_with_jacobian(p)
+        .and_then(|(_, j)| {
+            let jj = j * j.transpose();
+            let (a, b, c) = (jj[(0, 0)], jj[(0, 1)], jj[(1, 1)]);
+            let lmin = 0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt();
+            (lmin > 1e-12).then(|| px_std / lmin.sqrt())
+        })
+        .unwrap_or(0.02 * depth)
+}
+
+/// The free audio measurement that best agrees with some depth of the ray: (scan, index, depth).
+fn best_audio_partner<const N: usize>(
+    ctx: &BirthContext<N>,
+    scans: &[BirthScan],
+    free: &[Vec<bool>],
+    ray: &Ray,
+    interval: (f64, f64),
+) -> Option<(usize, usize, f64)> {
+    let mut best: Option<(usize, usize, f64, f64)> = None;
+    for (sa, a) in scans.iter().enumerate() {
+        let sensor = &ctx.sensors[a.sensor];
+        if !sensor.audio {
+            continue;
+        }
+        let Some(r_inv) = sensor.r.try_inverse() else {
+            continue;
+        };
+        for (ja, z) in a.z.iter().enumerate() {
+            if !free[sa][ja] {
+                continue;
+            }
+            let cost = |t: f64| -> f64 {
+                let x = state_of::<N>(&ray.at(t), &Vec3::zeros());
+                match sensor.measure(&x) {
+                    Some(h) => {
+                        let r = sensor.residual(z, &h);
+                        r.dot(&(r_inv * r))
+                    }
+                    None => f64::INFINITY,
+                }
+            };
+            let (t, d2) = minimise_on_interval(cost, interval.0, interval.1);
+            if d2 <= sensor.gate && best.is_none_or(|b| d2 < b.3) {
+                best = Some((sa, ja, t, d2));
+            }
+        }
+    }
+    best.map(|(s, j, t, _)| (s, j, t))
+}
+
+/// Minimum of a 1-D function: a grid then golden-section refinement around the best node.
+fn minimise_on_interval(f: impl Fn(f64) -> f64, lo: f64, hi: f64) -> (f64, f64) {
+    const GRID: usize = 48;
+    let step = (hi - lo) / (GRID - 1) as f64;
+    let (mut bt, mut bv) = (lo, f64::INFINITY);
+    for i in 0..GRID {
+        let t = lo + step * i as f64;
+        let v = f(t);
+        if v < bv {
+            (bt, bv) = (t, v);
+        }
+    }
+    let (mut a, mut b) = ((bt - step).max(lo), (bt + step).min(hi));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..40 {
+        let c = b - g * (b - a);
+        let d = a + g * (b - a);
+        if f(c) < f(d) {
+            b = d;
+        } else {
+            a = c;
+        }
+    }
+    let t = 0.5 * (a + b);
+    let v = f(t);
+    if v < bv { (t, v) } else { (bt, bv) }
+}
+
+/// A birth along an audio direction (or on a cone) with a broad range prior.
+fn direction_birth<const N: usize>(
+    ctx: &BirthContext<N>,
+    sensor: &Sensor<N>,
+    z: &Vector3<f64>,
+) -> Option<Gaussian<N>> {
+    let cfg = ctx.cfg;
+    let ang_std = sensor.r[(0, 0)].sqrt();
+    let centre = ctx.region.map(|r| r.center());
+    let (origin, dir, across_extra) = match &sensor.obs {
+        Observation::Direction { origin, elevation } if *elevation => {
+            (*origin, direction_from_angles(z[0], z[1]), None)
+        }
+        Observation::Direction { origin, .. } => {
+            // Azimuth only: a horizontal ray at the typical height, broad vertically.
+            let height = centre.map_or(cfg.default_height_m, |c| c.z);
+            let o = Vec3::new(origin.x, origin.y, height);
+            let vertical = ctx.region.map_or(0.5, |r| 0.25 * (r.max.z - r.min.z));
+            (o, direction_from_angles(z[0], 0.0), Some((Vec3::z(), vertical, false)))
+        }
+        Observation::Cone { origin, axis } => {
+            // The cone's direction nearest to the region centre (or to the horizontal).
+            let toward = centre.map_or(Vec3::x(), |c| c - origin);
+            let perp = toward - axis * axis.dot(&toward);
+            let perp = if perp.norm() > 1e-9 {
+                perp.normalize()
+            } else {
+                axis.cross(&Vec3::z()).try_normalize(1e-9).unwrap_or(Vec3::y())
+            };
+            let d = axis * z[0].cos() + perp * z[0].sin();
+            let around = axis.cross(&d).try_normalize(1e-9).unwrap_or(Vec3::z());
+            // The roll about the axis is unmeasured: half a radian of arc, scaled by range.
+            (*origin, d, Some((around, 0.5, true)))
+        }
+        _ => return None,
+    };
+    let ray = Ray {
+        origin,
+        direction: dir.normalize(),
+    };
+    let (t0, t1) = match ctx.region {
+        Some(r) => ray_interval(&ray.origin, &ray.direction, r)?,
+        None => (0.5 * cfg.direction_range_m, 1.5 * cfg.direction_range_m),
+    };
+    let t = 0.5 * (t0 + t1);
+    let mut pos = elongated(&ray.direction, 0.25 * (t1 - t0).max(0.2), t * ang_std);
+    if let Some((axis, sd, angular)) = across_extra {
+        let sd = if angular { sd * t } else { sd };
+        pos += axis * axis.transpose() * sd * sd;
+    }
+    Some(make_density(&ray.at(t), &pos, cfg))
+}
+
+/// A birth from a generic linear measurement: a Kalman update of a broad prior.
+fn linear_birth<const N: usize>(
+    ctx: &BirthContext<N>,
+    sensor: &Sensor<N>,
+    z: &Vector3<f64>,
+) -> Option<Gaussian<N>> {
+    const BROAD_STD: f64 = 1e4;
+    let d = N / 2;
+    let mut cov = SMatrix::<f64, N, N>::zeros();
+    for i in 0..N {
+        let sd = if i < d {
+            BROAD_STD
+        } else {
+            ctx.cfg.velocity_std_m_per_s
+        };
+        cov[(i, i)] = sd * sd;
+    }
+    let prior = Gaussian {
+        mean: nalgebra::SVector::<f64, N>::zeros(),
+        cov,
+    };
+    update(sensor, &prior, z, ctx.ukf).map(|(g, _)| g)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Camera;
+    use crate::track::config::{FilterKind, TrackerConfig};
+    use crate::track::sensor::SensorModel;
+
+    fn camera() -> Camera {
+        // Looking along +y from (2, 0, 1.5), 1000 px focal length.
+        let k = Matrix3::new(1000.0, 0.0, 960.0, 0.0, 1000.0, 540.0, 0.0, 0.0, 1.0);
+        let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0);
+        let c = Vec3::new(2.0, 0.0, 1.5);
+        Camera::from_krt("cam", 1920.0, 1080.0, k, r, -(r * c), None).unwrap()
+    }
+
+    fn sensors(cfg: &TrackerConfig) -> Vec<Sensor<6>> {
+        let models = [
+            SensorModel::CameraPoint {
+                camera: Box::new(camera()),
+                noise_std_px: 10.0,
+                p_detect: 0.9,
+                clutter_rate: 1.0,
+                filter: FilterKind::Ukf,
+            },
+            SensorModel::AudioDirection {
+                origin: Vec3::new(0.0, 2.0, 1.0),
+                noise_std_rad: 0.03,
+                uses_elevation: false,
+                cone_axis: None,
+                p_detect: 0.6,
+                min_p_detect: 0.02,
+                clutter_rate: 2.0,
+                filter: FilterKind::Ekf,
+            },
+        ];
+        models
+            .iter()
+            .enumerate()
+            .map(|(i, m)| Sensor::compile(m, i, cfg).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn camera_ray_and_audio_azimuth_meet_at_the_source() {
+        let cfg = TrackerConfig::default();
+        let sensors = sensors(&cfg);
+        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let source = Vec3::new(2.6, 3.0, 1.6);
+        let x = state_of::<6>(&source, &Vec3::zeros());
+        let px = sensors[0].measure(&x).unwrap();
+        let az = sensors[1].measure(&x).unwrap();
+        let ctx = BirthContext {
+            cfg: &cfg.birth,
+            ukf: &cfg.ukf,
+            region: Some(&region),
+            sensors: &sensors,
+        };
+        let (zc, za) = ([px], [az]);
+        let scans = [
+            BirthScan {
+                sensor: 0,
+                z: &zc,
+                assoc: &[0.0],
+            },
+            BirthScan {
+                sensor: 1,
+                z: &za,
+                assoc: &[0.0],
+            },
+        ];
+        let births = births_from_measurements(&ctx, &scans, &[]);
+        assert_eq!(births.len(), 1, "one fused birth, not one per sensor");
+        let p = position_of(&births[0].density.mean);
+        assert!((p - source).norm() < 0.05, "{p:?}");
+        // The audio measurement sharpened the depth: the along-ray spread is far below the
+        // region's depth span.
+        let dir = camera().back_project(&Pixel::new(px[0], px[1])).direction;
+        let along = (dir.transpose() * position_block(&births[0].density.cov) * dir)[0].sqrt();
+        assert!(along < 0.3, "{along}");
+        assert!(births[0].existence <= cfg.birth.max_existence);
+
+        // A confirmed track at the source suppresses both measurements.
+        let track = Gaussian {
+            mean: x,
+            cov: SMatrix::<f64, 6, 6>::identity() * 0.01,
+        };
+        assert!(births_from_measurements(&ctx, &scans, &[track]).is_empty());
+        // Measurements already explained by the tracks seed nothing.
+        let explained = [
+            BirthScan {
+                sensor: 0,
+                z: &zc,
+                assoc: &[0.95],
+            },
+            BirthScan {
+                sensor: 1,
+                z: &za,
+                assoc: &[0.95],
+            },
+        ];
+        assert!(births_from_measurements(&ctx, &explained, &[]).is_empty());
+    }
+
+    #[test]
+    fn a_lone_azimuth_gives_a_broad_birth_on_its_bearing() {
+        let cfg = TrackerConfig::default();
+        let sensors = sensors(&cfg);
+        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let ctx = BirthContext {
+            cfg: &cfg.birth,
+            ukf: &cfg.ukf,
+            region: Some(&region),
+            sensors: &sensors,
+        };
+        let za = [Vector3::new(0.3, 0.0, 0.0)];
+        let scans = [BirthScan {
+            sensor: 1,
+            z: &za,
+            assoc: &[0.0],
+        }];
+        let b = births_from_measurements(&ctx, &scans, &[]);
+        assert_eq!(b.len(), 1);
+        let p = position_of(&b[0].density.mean);
+        let d = p - Vec3::new(0.0, 2.0, p.z);
+        assert!((d.y.atan2(d.x) - 0.3).abs() < 1e-9);
+        assert!(region.contains(&p));
+    }
+}

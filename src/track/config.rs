@@ -1,0 +1,613 @@
+//! Tracker configuration: every model parameter with its documented default.
+//!
+//! Defaults follow the seed paper (spec 003 Table III/IV) where it gives a value, and say so;
+//! where it does not, the value and the reason for it are written on the field.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Invalid tracker configuration or sensor model: names the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct ConfigError {
+    /// Dotted path of the offending field, e.g. `camera.p_detect`.
+    pub field: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+impl ConfigError {
+    /// An error about `field`.
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Which multi-object tracker runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackerKind {
+    /// Multi-sensor GLMB with joint prediction and update (Vo, Vo & Beard 2019).
+    #[default]
+    Glmb,
+    /// GM-PHD with label propagation and sequential per-sensor update (Pham 2007), for comparison.
+    Gmphd,
+}
+
+/// Single-object filter used for a nonlinear sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum FilterKind {
+    /// Extended Kalman filter with the analytic Jacobian at the predicted mean.
+    #[default]
+    Ekf,
+    /// Unscented Kalman filter (scaled sigma points, parameters in `ukf`).
+    Ukf,
+}
+
+/// Dynamic model of a track.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionKind {
+    /// Langevin model of the paper (spec 003 eq. 14-15): mean-reverting velocity.
+    #[default]
+    Langevin,
+    /// Nearly constant velocity (piecewise-constant white acceleration).
+    ConstantVelocity,
+}
+
+/// The whole tracker configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackerConfig {
+    /// Tracker: `glmb` (multi-sensor GLMB, default) or `gmphd` (GM-PHD with label propagation).
+    pub tracker: TrackerKind,
+    /// Motion model of a track; F and Q are rebuilt every step from dt = t - t_prev.
+    pub motion: MotionConfig,
+    /// Probability that a track survives one step (P_S; paper: 0.999).
+    pub survival_probability: f64,
+    /// Audio 3-D position candidates (a localiser that outputs points).
+    pub audio_position: AudioPositionConfig,
+    /// Audio directions of arrival around an array's centroid.
+    pub audio_direction: AudioDirectionConfig,
+    /// Camera point detections (face centres) in pixels.
+    pub camera: CameraConfig,
+    /// Unscented-transform parameters for sensors whose filter is `ukf`.
+    pub ukf: UkfConfig,
+    /// Probability mass inside the measurement gate (chi-square); 1 disables gating.
+    pub gate_probability: f64,
+    /// Hypothesis management of the GLMB.
+    pub glmb: GlmbConfig,
+    /// Track birth: fixed birth points and measurement-driven birth.
+    pub birth: BirthConfig,
+    /// Track reporting (estimator) settings.
+    pub estimator: EstimatorConfig,
+    /// Exponential smoothing weight of the new `speaking` value, in (0, 1]; 1 = no smoothing.
+    pub speaking_smoothing: f64,
+    /// Keep track means inside the region (grown by 0.5 m) when a region is known; the
+    /// unobservable range of direction-only tracks would otherwise drift away.
+    pub clamp_to_region: bool,
+    /// GM-PHD settings (used when `tracker = "gmphd"`).
+    pub gmphd: GmphdConfig,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            tracker: TrackerKind::Glmb,
+            motion: MotionConfig::default(),
+            survival_probability: 0.999,
+            audio_position: AudioPositionConfig::default(),
+            audio_direction: AudioDirectionConfig::default(),
+            camera: CameraConfig::default(),
+            ukf: UkfConfig::default(),
+            gate_probability: 0.9999,
+            glmb: GlmbConfig::default(),
+            birth: BirthConfig::default(),
+            estimator: EstimatorConfig::default(),
+            speaking_smoothing: 0.5,
+            clamp_to_region: true,
+            gmphd: GmphdConfig::default(),
+        }
+    }
+}
+
+/// Motion model parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct MotionConfig {
+    /// `langevin` (default, the paper's model) or `constant_velocity`.
+    pub model: MotionKind,
+    /// Langevin: velocity decay rate beta (1/s; paper: 10).
+    pub beta_per_s: f64,
+    /// Langevin: steady-state RMS velocity nu (m/s; paper: 1).
+    pub nu_m_per_s: f64,
+    /// Langevin: per-axis velocity noise sigma (x, y, z; paper: [1.2, 1.2, 0.2]).
+    pub sigma_m_per_s: [f64; 3],
+    /// Constant velocity: per-axis white-acceleration standard deviation (m/s^2).
+    pub accel_std_m_per_s2: [f64; 3],
+}
+
+impl Default for MotionConfig {
+    fn default() -> Self {
+        Self {
+            model: MotionKind::Langevin,
+            beta_per_s: 10.0,
+            nu_m_per_s: 1.0,
+            sigma_m_per_s: [1.2, 1.2, 0.2],
+            accel_std_m_per_s2: [2.0, 2.0, 0.5],
+        }
+    }
+}
+
+/// Audio 3-D position candidates: z = position + N(0, sigma^2 I).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct AudioPositionConfig {
+    /// Measurement noise standard deviation per axis (m; paper: 0.1).
+    pub noise_std_m: f64,
+    /// Detection probability while the voice is active (paper: 0.6).
+    pub p_detect: f64,
+    /// Lower bound of the activity-scaled detection probability: P_D = max(min, p_detect * activity).
+    pub min_p_detect: f64,
+    /// Expected false candidates per step (paper: 10), uniform on the region.
+    pub clutter_rate: f64,
+    /// Clutter support volume (m^3) when the layout has no region.
+    pub clutter_volume_m3: f64,
+}
+
+impl Default for AudioPositionConfig {
+    fn default() -> Self {
+        Self {
+            noise_std_m: 0.1,
+            p_detect: 0.6,
+            min_p_detect: 0.02,
+            clutter_rate: 10.0,
+            clutter_volume_m3: 50.0,
+        }
+    }
+}
+
+/// Audio directions of arrival: azimuth (and elevation) seen from an array's centroid; for a
+/// linear array the cone angle to its axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct AudioDirectionConfig {
+    /// Angular noise standard deviation (degrees). 5 degrees is the spread of SRP-PHAT peaks of a
+    /// 5-10 cm array in a moderately reverberant room; lower it for better front ends.
+    pub noise_std_deg: f64,
+    /// Detection probability while the voice is active.
+    pub p_detect: f64,
+    /// Lower bound of the activity-scaled detection probability.
+    pub min_p_detect: f64,
+    /// Expected false directions per step, uniform over the angle space.
+    pub clutter_rate: f64,
+    /// Use the elevation measured by planar arrays (mirror-ambiguous about the array plane);
+    /// volumetric arrays always use it, linear arrays never (they measure a cone angle).
+    pub planar_elevation: bool,
+    /// Single-object filter for this nonlinear sensor (`ekf` or `ukf`).
+    pub filter: FilterKind,
+}
+
+impl Default for AudioDirectionConfig {
+    fn default() -> Self {
+        Self {
+            noise_std_deg: 5.0,
+            p_detect: 0.6,
+            min_p_detect: 0.02,
+            clutter_rate: 2.0,
+            planar_elevation: false,
+            filter: FilterKind::Ekf,
+        }
+    }
+}
+
+/// Camera point detections through the calibrated camera (distortion included).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraConfig {
+    /// Pixel noise standard deviation at an image height of `reference_height_px` (paper: 20 px
+    /// at 1080p); scaled linearly with the actual image height.
+    pub noise_std_px: f64,
+    /// Image height (px) at which `noise_std_px` holds.
+    pub reference_height_px: f64,
+    /// Detection probability of a track in view. The paper's 0.99 ends a track after a single
+    /// frame without a face (spec 003 5.12); 0.9 lets a track ride out 2-3 missed frames while an
+    /// empty scan still lowers its existence.
+    pub p_detect: f64,
+    /// Expected false detections per frame, uniform on the image (paper: 1).
+    pub clutter_rate: f64,
+    /// Single-object filter for this nonlinear sensor (the reference code uses a UKF).
+    pub filter: FilterKind,
+    /// Lower the detection probability of a track hidden behind another track (shadow test with
+    /// a person-sized ellipsoid at the other track's mean; spec 000 3.9). Off by default: the
+    /// paper's audio-visual model has no occlusion.
+    pub occlusion: bool,
+    /// Factor applied to P_D when occluded (thesis: 0.1).
+    pub occluded_factor: f64,
+    /// Half-sizes (x, y, z) of the occluding ellipsoid around a head (m).
+    pub occluder_half_size_m: [f64; 3],
+}
+
+impl Default for CameraConfig {
+    fn default() -> Self {
+        Self {
+            noise_std_px: 20.0,
+            reference_height_px: 1080.0,
+            p_detect: 0.9,
+            clutter_rate: 1.0,
+            filter: FilterKind::Ukf,
+            occlusion: false,
+            occluded_factor: 0.1,
+            occluder_half_size_m: [0.2, 0.2, 0.25],
+        }
+    }
+}
+
+/// Scaled unscented transform parameters (reference code: alpha 1, beta 2, kappa 2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct UkfConfig {
+    /// Spread of the sigma points.
+    pub alpha: f64,
+    /// Prior-distribution parameter (2 is optimal for Gaussians).
+    pub beta: f64,
+    /// Secondary scaling parameter.
+    pub kappa: f64,
+}
+
+impl Default for UkfConfig {
+    fn default() -> Self {
+        Self {
+            alpha: 1.0,
+            beta: 2.0,
+            kappa: 2.0,
+        }
+    }
+}
+
+/// GLMB hypothesis management.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct GlmbConfig {
+    /// Gibbs samples requested per step over all parent hypotheses (H_upd), shared in proportion
+    /// to sqrt(weight).
+    pub requested_hypotheses: usize,
+    /// Hypotheses kept after the update (H_max).
+    pub max_hypotheses: usize,
+    /// Hypotheses with a normalised weight below this are pruned.
+    pub prune_threshold: f64,
+}
+
+impl Default for GlmbConfig {
+    fn default() -> Self {
+        Self {
+            requested_hypotheses: 1000,
+            max_hypotheses: 1000,
+            prune_threshold: 1e-15,
+        }
+    }
+}
+
+/// A fixed birth point (the paper's static LMB birth), offered every step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FixedBirth {
+    /// Mean position (m).
+    pub position: [f64; 3],
+    /// Birth existence probability r_B (paper: 0.005).
+    pub existence: f64,
+    /// Position standard deviation per axis (m; paper: 0.2).
+    pub position_std_m: f64,
+    /// Velocity standard deviation per axis (m/s; paper: 0.2).
+    pub velocity_std_m_per_s: f64,
+}
+
+/// Track birth.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct BirthConfig {
+    /// Fixed birth points offered every step (the paper's model; empty by default).
+    pub fixed: Vec<FixedBirth>,
+    /// Seed births from the measurements the tracks explain poorly (adaptive birth, Reuter et
+    /// al. 2014): r_B = min(max_existence, (1 - r_U) / sum(1 - r_U) * expected_births).
+    pub from_measurements: bool,
+    /// Expected number of new tracks per step (lambda_B).
+    pub expected_births: f64,
+    /// Upper bound of a measurement-driven birth's existence (r_B,max).
+    pub max_existence: f64,
+    /// Measurements assigned to tracks with a probability above this seed no birth.
+    pub max_association: f64,
+    /// Most births offered per step (the highest r_B first; a camera detection confirmed by an
+    /// audio measurement ranks first).
+    pub max_per_step: usize,
+    /// Position standard deviation added to every measurement-driven birth (m): motion during
+    /// one step and the gap between the head and the detected point.
+    pub position_std_m: f64,
+    /// Velocity standard deviation of a birth (m/s).
+    pub velocity_std_m_per_s: f64,
+    /// Depth range (m) of a camera ray used when the layout has no region.
+    pub camera_depth_range_m: [f64; 2],
+    /// Range (m) along an audio direction used when the layout has no region.
+    pub direction_range_m: f64,
+    /// Height (m) of a birth from an azimuth-only direction when the layout has no region.
+    pub default_height_m: f64,
+    /// A measurement inside this gate (chi-square probability) of a confirmed track's predicted
+    /// measurement seeds no birth, so births do not pile up on existing tracks.
+    pub suppress_gate_probability: f64,
+    /// Tracks with an existence (GM-PHD: weight) at least this suppress births in their gate.
+    pub suppress_existence: f64,
+}
+
+impl Default for BirthConfig {
+    fn default() -> Self {
+        Self {
+            fixed: Vec::new(),
+            from_measurements: true,
+            expected_births: 0.2,
+            max_existence: 0.05,
+            max_association: 0.8,
+            max_per_step: 4,
+            position_std_m: 0.1,
+            velocity_std_m_per_s: 0.5,
+            camera_depth_range_m: [0.5, 6.0],
+            direction_range_m: 1.5,
+            default_height_m: 1.5,
+            suppress_gate_probability: 0.99,
+            suppress_existence: 0.1,
+        }
+    }
+}
+
+/// Estimator: which tracks are reported each step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct EstimatorConfig {
+    /// A label reported in the previous step but absent from this step's MAP estimate is still
+    /// reported for up to this many steps while its existence stays above `hysteresis_existence`.
+    pub hysteresis_steps: u32,
+    /// Lower existence threshold of the hysteresis.
+    pub hysteresis_existence: f64,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self {
+            hysteresis_steps: 3,
+            hysteresis_existence: 0.1,
+        }
+    }
+}
+
+/// GM-PHD settings (spec 002 sections 3-6).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct GmphdConfig {
+    /// Components with a weight below this are dropped (T).
+    pub prune_threshold: f64,
+    /// Squared Mahalanobis distance under which components merge (U).
+    pub merge_threshold: f64,
+    /// Most components kept after each sensor's update (J_max).
+    pub max_components: usize,
+    /// Components with a weight above this give an estimate.
+    pub extraction_threshold: f64,
+    /// Label matching gate on the position distance to the previous estimate (m).
+    pub label_gate_m: f64,
+    /// Steps a vanished label is remembered; an unmatched estimate within the gate of its
+    /// predicted position gets it back (speakers who pause).
+    pub label_coast_steps: u32,
+}
+
+impl Default for GmphdConfig {
+    fn default() -> Self {
+        Self {
+            prune_threshold: 1e-5,
+            merge_threshold: 4.0,
+            max_components: 100,
+            extraction_threshold: 0.5,
+            label_gate_m: 1.0,
+            label_coast_steps: 16,
+        }
+    }
+}
+
+fn check(ok: bool, field: &str, message: &str) -> Result<(), ConfigError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, message))
+    }
+}
+
+fn positive(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(v.is_finite() && v > 0.0, field, "must be a positive number")
+}
+
+fn probability_open(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && v > 0.0 && v < 1.0,
+        field,
+        "must be a probability strictly between 0 and 1",
+    )
+}
+
+fn probability(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && (0.0..=1.0).contains(&v),
+        field,
+        "must be a probability in [0, 1]",
+    )
+}
+
+/// Detection probabilities must stay below 1 so that a miss keeps a finite log weight.
+fn detect_probability(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && (0.0..1.0).contains(&v),
+        field,
+        "must be in [0, 1) (a miss must remain possible)",
+    )
+}
+
+fn non_negative(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && v >= 0.0,
+        field,
+        "must be a non-negative number",
+    )
+}
+
+impl TrackerConfig {
+    /// Checks every field; the error names the first offending one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let m = &self.motion;
+        positive(m.beta_per_s, "motion.beta_per_s")?;
+        positive(m.nu_m_per_s, "motion.nu_m_per_s")?;
+        for (i, s) in m.sigma_m_per_s.iter().enumerate() {
+            non_negative(*s, &format!("motion.sigma_m_per_s[{i}]"))?;
+        }
+        for (i, s) in m.accel_std_m_per_s2.iter().enumerate() {
+            non_negative(*s, &format!("motion.accel_std_m_per_s2[{i}]"))?;
+        }
+        probability_open(self.survival_probability, "survival_probability")?;
+        let a = &self.audio_position;
+        positive(a.noise_std_m, "audio_position.noise_std_m")?;
+        detect_probability(a.p_detect, "audio_position.p_detect")?;
+        detect_probability(a.min_p_detect, "audio_position.min_p_detect")?;
+        positive(a.clutter_rate, "audio_position.clutter_rate")?;
+        positive(a.clutter_volume_m3, "audio_position.clutter_volume_m3")?;
+        let d = &self.audio_direction;
+        positive(d.noise_std_deg, "audio_direction.noise_std_deg")?;
+        detect_probability(d.p_detect, "audio_direction.p_detect")?;
+        detect_probability(d.min_p_detect, "audio_direction.min_p_detect")?;
+        positive(d.clutter_rate, "audio_direction.clutter_rate")?;
+        let c = &self.camera;
+        positive(c.noise_std_px, "camera.noise_std_px")?;
+        positive(c.reference_height_px, "camera.reference_height_px")?;
+        detect_probability(c.p_detect, "camera.p_detect")?;
+        positive(c.clutter_rate, "camera.clutter_rate")?;
+        probability(c.occluded_factor, "camera.occluded_factor")?;
+        for (i, s) in c.occluder_half_size_m.iter().enumerate() {
+            positive(*s, &format!("camera.occluder_half_size_m[{i}]"))?;
+        }
+        positive(self.ukf.alpha, "ukf.alpha")?;
+        non_negative(self.ukf.beta, "ukf.beta")?;
+        non_negative(self.ukf.kappa, "ukf.kappa")?;
+        check(
+            self.gate_probability.is_finite()
+                && self.gate_probability > 0.5
+                && self.gate_probability <= 1.0,
+            "gate_probability",
+            "must be in (0.5, 1]",
+        )?;
+        let g = &self.glmb;
+        check(
+            (1..=1_000_000).contains(&g.requested_hypotheses),
+            "glmb.requested_hypotheses",
+            "must be between 1 and 1000000",
+        )?;
+        check(
+            (1..=1_000_000).contains(&g.max_hypotheses),
+            "glmb.max_hypotheses",
+            "must be between 1 and 1000000",
+        )?;
+        probability_open(g.prune_threshold, "glmb.prune_threshold")?;
+        self.validate_birth()?;
+        let e = &self.estimator;
+        probability(e.hysteresis_existence, "estimator.hysteresis_existence")?;
+        check(
+            self.speaking_smoothing.is_finite()
+                && self.speaking_smoothing > 0.0
+                && self.speaking_smoothing <= 1.0,
+            "speaking_smoothing",
+            "must be in (0, 1]",
+        )?;
+        let p = &self.gmphd;
+        probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
+        positive(p.merge_threshold, "gmphd.merge_threshold")?;
+        check(
+            (1..=100_000).contains(&p.max_components),
+            "gmphd.max_components",
+            "must be between 1 and 100000",
+        )?;
+        positive(p.extraction_threshold, "gmphd.extraction_threshold")?;
+        positive(p.label_gate_m, "gmphd.label_gate_m")?;
+        Ok(())
+    }
+
+    fn validate_birth(&self) -> Result<(), ConfigError> {
+        let b = &self.birth;
+        for (i, f) in b.fixed.iter().enumerate() {
+            for (j, v) in f.position.iter().enumerate() {
+                check(
+                    v.is_finite(),
+                    &format!("birth.fixed[{i}].position[{j}]"),
+                    "must be finite",
+                )?;
+            }
+            probability_open(f.existence, &format!("birth.fixed[{i}].existence"))?;
+            positive(f.position_std_m, &format!("birth.fixed[{i}].position_std_m"))?;
+            positive(
+                f.velocity_std_m_per_s,
+                &format!("birth.fixed[{i}].velocity_std_m_per_s"),
+            )?;
+        }
+        positive(b.expected_births, "birth.expected_births")?;
+        probability_open(b.max_existence, "birth.max_existence")?;
+        probability(b.max_association, "birth.max_association")?;
+        check(
+            b.max_per_step <= 64,
+            "birth.max_per_step",
+            "must be at most 64",
+        )?;
+        positive(b.position_std_m, "birth.position_std_m")?;
+        positive(b.velocity_std_m_per_s, "birth.velocity_std_m_per_s")?;
+        let [d0, d1] = b.camera_depth_range_m;
+        check(
+            d0.is_finite() && d1.is_finite() && d0 > 0.0 && d1 > d0,
+            "birth.camera_depth_range_m",
+            "must be [near, far] with 0 < near < far",
+        )?;
+        positive(b.direction_range_m, "birth.direction_range_m")?;
+        check(
+            b.default_height_m.is_finite(),
+            "birth.default_height_m",
+            "must be finite",
+        )?;
+        probability_open(b.suppress_gate_probability, "birth.suppress_gate_probability")?;
+        probability(b.suppress_existence, "birth.suppress_existence")?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_round_trip() {
+        let c = TrackerConfig::default();
+        c.validate().unwrap();
+        let s = serde_json::to_string(&c).unwrap();
+        let back: TrackerConfig = serde_json::from_str(&s).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn unknown_fields_and_bad_values_name_the_field() {
+        let e = serde_json::from_str::<TrackerConfig>(r#"{"camera": {"p_detekt": 0.5}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p_detekt"), "{e}");
+        let mut c = TrackerConfig::default();
+        c.camera.p_detect = 1.0;
+        assert_eq!(c.validate().unwrap_err().field, "camera.p_detect");
+        let mut c = TrackerConfig::default();
+        c.birth.camera_depth_range_m = [2.0, 1.0];
+        assert_eq!(c.validate().unwrap_err().field, "birth.camera_depth_range_m");
+        let c: TrackerConfig = serde_json::from_str(r#"{"tracker": "gmphd"}"#).unwrap();
+        assert_eq!(c.tracker, TrackerKind::Gmphd);
+    }
+}

@@ -1,0 +1,752 @@
+//! Sensor (measurement) models: what each sensor measures of a state, with what noise, how often
+//! it detects and how much clutter it reports.
+//!
+//! Every measurement is held in a 3-vector; sensors that measure fewer components pad the rest
+//! with zeros, a zero Jacobian row and unit noise variance. Padded components then carry zero
+//! innovation, leave the update unchanged and add nothing to the Mahalanobis distance; the
+//! likelihood normalisation uses the true dimension.
+
+use std::f64::consts::PI;
+
+use nalgebra::{DMatrix, Matrix3, SMatrix, SVector, Vector3};
+
+use super::config::{ConfigError, FilterKind, TrackerConfig};
+use super::gaussian::chi_square_quantile;
+use super::motion::position_of;
+use crate::geometry::{
+    Aabb, ArrayShape, Camera, Layout, Pixel, Vec3, direction_from_angles, wrap_angle,
+};
+
+/// A measurement as delivered to the tracker.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Measurement {
+    /// A 3-D position candidate (m, world frame).
+    Position(Vec3),
+    /// A direction of arrival from the sensor's origin (rad, scene convention).
+    Direction {
+        /// Azimuth in the x-y plane from +x towards +y.
+        azimuth: f64,
+        /// Elevation from the x-y plane, when the array resolves it.
+        elevation: Option<f64>,
+    },
+    /// A camera point (px).
+    Pixel(Pixel),
+    /// A point of a generic linear sensor z = H x + noise.
+    Point {
+        /// The measured vector (its length is the sensor's measurement dimension, at most 3).
+        z: Vec<f64>,
+    },
+}
+
+/// Which layout sensor a [`SensorModel`] stands for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SensorKey {
+    /// 3-D position candidates of array i.
+    ArrayPositions(usize),
+    /// Directions of arrival of array i.
+    ArrayDirections(usize),
+    /// Point detections of camera j.
+    Camera(usize),
+}
+
+/// A sensor's measurement model, built by the pipeline from the layout and the configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SensorModel {
+    /// Audio 3-D position candidates: z = p + N(0, noise^2 I); clutter uniform on a volume.
+    AudioPosition {
+        /// Noise standard deviation per axis (m).
+        noise_std_m: f64,
+        /// Detection probability while the voice is active.
+        p_detect: f64,
+        /// Floor of the activity-scaled detection probability.
+        min_p_detect: f64,
+        /// Expected clutter per step.
+        clutter_rate: f64,
+        /// Volume (m^3) the clutter is uniform on.
+        clutter_volume_m3: f64,
+    },
+    /// Audio direction of arrival from `origin` (the array centroid).
+    AudioDirection {
+        /// Array centroid (m).
+        origin: Vec3,
+        /// Angular noise standard deviation (rad).
+        noise_std_rad: f64,
+        /// Whether the elevation is measured (ignored for a cone sensor).
+        uses_elevation: bool,
+        /// For a linear array: its axis; the measurement is then the cone angle to the axis.
+        cone_axis: Option<Vec3>,
+        /// Detection probability while the voice is active.
+        p_detect: f64,
+        /// Floor of the activity-scaled detection probability.
+        min_p_detect: f64,
+        /// Expected clutter per step, uniform over the angle space.
+        clutter_rate: f64,
+        /// Single-object filter.
+        filter: FilterKind,
+    },
+    /// Camera point detections (face centres).
+    CameraPoint {
+        /// The calibrated camera.
+        camera: Box<Camera>,
+        /// Pixel noise standard deviation.
+        noise_std_px: f64,
+        /// Detection probability of a track in view (0 out of view or behind).
+        p_detect: f64,
+        /// Expected clutter per frame, uniform on the image.
+        clutter_rate: f64,
+        /// Single-object filter.
+        filter: FilterKind,
+    },
+    /// A generic linear sensor z = H x + N(0, R) (H is m x N with m <= 3).
+    GenericPoint {
+        /// Observation matrix (m x state dimension).
+        h: DMatrix<f64>,
+        /// Noise covariance (m x m, positive definite).
+        r: DMatrix<f64>,
+        /// Detection probability.
+        p_detect: f64,
+        /// Expected clutter per step.
+        clutter_rate: f64,
+        /// Clutter density on the measurement space (1 / its volume).
+        clutter_density: f64,
+    },
+}
+
+/// The default sensor list of a layout: for every array its position candidates and its
+/// directions (cone angles for linear arrays, no directions for a single microphone), then every
+/// camera. Sensors that never report cost nothing.
+pub fn sensors_from_layout(layout: &Layout, cfg: &TrackerConfig) -> Vec<(SensorKey, SensorModel)> {
+    let mut out = Vec::new();
+    let ap = &cfg.audio_position;
+    let ad = &cfg.audio_direction;
+    for (i, array) in layout.arrays.iter().enumerate() {
+        out.push((
+            SensorKey::ArrayPositions(i),
+            SensorModel::AudioPosition {
+                noise_std_m: ap.noise_std_m,
+                p_detect: ap.p_detect,
+                min_p_detect: ap.min_p_detect,
+                clutter_rate: ap.clutter_rate,
+                clutter_volume_m3: layout
+                    .region
+                    .map(|r| r.volume())
+                    .unwrap_or(ap.clutter_volume_m3),
+            },
+        ));
+        let (uses_elevation, cone_axis) = match array.shape() {
+            ArrayShape::Point => continue,
+            ArrayShape::Linear { axis } => (false, Some(axis)),
+            ArrayShape::Planar { .. } => (ad.planar_elevation, None),
+            ArrayShape::Volumetric => (true, None),
+        };
+        out.push((
+            SensorKey::ArrayDirections(i),
+            SensorModel::AudioDirection {
+                origin: array.centroid(),
+                noise_std_rad: ad.noise_std_deg.to_radians(),
+                uses_elevation,
+                cone_axis,
+                p_detect: ad.p_detect,
+                min_p_detect: ad.min_p_detect,
+                clutter_rate: ad.clutter_rate,
+                filter: ad.filter,
+            },
+        ));
+    }
+    let c = &cfg.camera;
+    for (j, camera) in layout.cameras.iter().enumerate() {
+        out.push((
+            SensorKey::Camera(j),
+            SensorModel::CameraPoint {
+                camera: Box::new(camera.clone()),
+                noise_std_px: c.noise_std_px * camera.height / c.reference_height_px,
+                p_detect: c.p_detect,
+                clutter_rate: c.clutter_rate,
+                filter: c.filter,
+            },
+        ));
+    }
+    out
+}
+
+/// What a compiled sensor observes of the state.
+#[derive(Debug, Clone)]
+pub(crate) enum Observation<const N: usize> {
+    /// The 3-D position.
+    Position,
+    /// Azimuth (and elevation) from an origin.
+    Direction { origin: Vec3, elevation: bool },
+    /// Angle between `axis` and the direction from `origin`.
+    Cone { origin: Vec3, axis: Vec3 },
+    /// Pixel through a calibrated camera.
+    Camera(Box<Camera>),
+    /// A linear map of the state (rows beyond the dimension are zero).
+    Linear(SMatrix<f64, 3, N>),
+}
+
+/// Why a measurement was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Rejection {
+    /// It holds NaN or infinite numbers.
+    NonFinite,
+    /// It is not the kind (or dimension) this sensor measures.
+    WrongKind,
+}
+
+/// A sensor model ready for the filters.
+#[derive(Debug, Clone)]
+pub(crate) struct Sensor<const N: usize> {
+    pub obs: Observation<N>,
+    /// Number of measured components (1..=3).
+    pub dim: usize,
+    /// Noise covariance, padded with unit variances.
+    pub r: Matrix3<f64>,
+    pub p_detect: f64,
+    pub min_p_detect: f64,
+    /// log of the clutter intensity kappa(z) = rate * uniform density.
+    pub log_clutter: f64,
+    pub filter: FilterKind,
+    /// An audio sensor: its detection follows the voice activity and feeds `speaking`.
+    pub audio: bool,
+    /// Squared Mahalanobis gate.
+    pub gate: f64,
+    /// Squared Mahalanobis radius inside which a measurement belongs to a confirmed track.
+    pub birth_gate: f64,
+}
+
+fn bad(index: usize, field: &str, message: &str) -> ConfigError {
+    ConfigError::new(format!("sensors[{index}].{field}"), message)
+}
+
+fn check_probability(v: f64, index: usize, field: &str) -> Result<(), ConfigError> {
+    if v.is_finite() && (0.0..1.0).contains(&v) {
+        Ok(())
+    } else {
+        Err(bad(index, field, "must be in [0, 1)"))
+    }
+}
+
+fn check_positive(v: f64, index: usize, field: &str) -> Result<(), ConfigError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(bad(index, field, "must be a positive number"))
+    }
+}
+
+impl<const N: usize> Sensor<N> {
+    /// Validates a sensor model and prepares it for a state of dimension N.
+    pub fn compile(
+        model: &SensorModel,
+        index: usize,
+        cfg: &TrackerConfig,
+    ) -> Result<Self, ConfigError> {
+        let needs_3d = !matches!(model, SensorModel::GenericPoint { .. });
+        if needs_3d && N != 6 {
+            return Err(bad(
+                index,
+                "kind",
+                "audio and camera sensors need the 3-D state [position; velocity]",
+            ));
+        }
+        let mut r = Matrix3::identity();
+        let (obs, dim, p_detect, min_p_detect, rate, log_density, filter, audio) = match model {
+            SensorModel::AudioPosition {
+                noise_std_m,
+                p_detect,
+                min_p_detect,
+                clutter_rate,
+                clutter_volume_m3,
+            } => {
+                check_positive(*noise_std_m, index, "noise_std_m")?;
+                check_positive(*clutter_volume_m3, index, "clutter_volume_m3")?;
+                r *= noise_std_m * noise_std_m;
+                (
+                    Observation::Position,
+                    3,
+                    *p_detect,
+                    *min_p_detect,
+                    *clutter_rate,
+                    -clutter_volume_m3.ln(),
+                    FilterKind::Ekf,
+                    true,
+                )
+            }
+            SensorModel::AudioDirection {
+                origin,
+                noise_std_rad,
+                uses_elevation,
+                cone_axis,
+                p_detect,
+                min_p_detect,
+                clutter_rate,
+                filter,
+            } => {
+                check_positive(*noise_std_rad, index, "noise_std_rad")?;
+                if origin.iter().any(|v| !v.is_finite()) {
+                    return Err(bad(index, "origin", "must be finite"));
+                }
+                let var = noise_std_rad * noise_std_rad;
+                let (obs, dim, log_density) = match cone_axis {
+                    Some(axis) => {
+                        let n = axis.norm();
+                        if !(n.is_finite() && n > 1e-9) {
+                            return Err(bad(index, "cone_axis", "must be a non-zero vector"));
+                        }
+                        let obs = Observation::Cone {
+                            origin: *origin,
+                            axis: axis / n,
+                        };
+                        (obs, 1, -PI.ln())
+                    }
+                    None if *uses_elevation => {
+                        let obs = Observation::Direction {
+                            origin: *origin,
+                            elevation: true,
+                        };
+                        (obs, 2, -(2.0 * PI * PI).ln())
+                    }
+                    None => {
+                        let obs = Observation::Direction {
+                            origin: *origin,
+                            elevation: false,
+                        };
+                        (obs, 1, -(2.0 * PI).ln())
+                    }
+                };
+                for i in 0..dim {
+                    r[(i, i)] = var;
+                }
+                (
+                    obs,
+                    dim,
+                    *p_detect,
+                    *min_p_detect,
+                    *clutter_rate,
+                    log_density,
+                    *filter,
+                    true,
+                )
+            }
+            SensorModel::CameraPoint {
+                camera,
+                noise_std_px,
+                p_detect,
+                clutter_rate,
+                filter,
+            } => {
+                check_positive(*noise_std_px, index, "noise_std_px")?;
+                let var = noise_std_px * noise_std_px;
+                r[(0, 0)] = var;
+                r[(1, 1)] = var;
+                (
+                    Observation::Camera(camera.clone()),
+                    2,
+                    *p_detect,
+                    0.0,
+                    *clutter_rate,
+                    -(camera.width * camera.height).ln(),
+                    *filter,
+                    false,
+                )
+            }
+            SensorModel::GenericPoint {
+                h,
+                r: noise,
+                p_detect,
+                clutter_rate,
+                clutter_density,
+            } => {
+                let m = h.nrows();
+                if !(1..=3).contains(&m) || h.ncols() != N {
+                    return Err(bad(
+                        index,
+                        "h",
+                        &format!("must be m x {N} with 1 <= m <= 3 (got {m} x {})", h.ncols()),
+                    ));
+                }
+                if noise.nrows() != m || noise.ncols() != m {
+                    return Err(bad(index, "r", "must be m x m, matching h"));
+                }
+                if h.iter().chain(noise.iter()).any(|v| !v.is_finite()) {
+                    return Err(bad(index, "h", "h and r must be finite"));
+                }
+                let sym = (noise + noise.transpose()) * 0.5;
+                if (noise - &sym).amax() > 1e-9 * sym.amax().max(1.0) || sym.clone().cholesky().is_none()
+                {
+                    return Err(bad(index, "r", "must be symmetric positive definite"));
+                }
+                check_positive(*clutter_density, index, "clutter_density")?;
+                let mut hh = SMatrix::<f64, 3, N>::zeros();
+                for i in 0..m {
+                    for j in 0..N {
+                        hh[(i, j)] = h[(i, j)];
+                    }
+                    for j in 0..m {
+                        r[(i, j)] = sym[(i, j)];
+                    }
+                }
+                (
+                    Observation::Linear(hh),
+                    m,
+                    *p_detect,
+                    0.0,
+                    *clutter_rate,
+                    clutter_density.ln(),
+                    FilterKind::Ekf,
+                    false,
+                )
+            }
+        };
+        check_probability(p_detect, index, "p_detect")?;
+        check_probability(min_p_detect, index, "min_p_detect")?;
+        check_positive(rate, index, "clutter_rate")?;
+        Ok(Self {
+            obs,
+            dim,
+            r,
+            p_detect,
+            min_p_detect,
+            log_clutter: rate.ln() + log_density,
+            filter,
+            audio,
+            gate: chi_square_quantile(cfg.gate_probability, dim),
+            birth_gate: chi_square_quantile(cfg.birth.suppress_gate_probability, dim),
+        })
+    }
+
+    /// Whether the measurement is nonlinear in the state.
+    pub fn nonlinear(&self) -> bool {
+        !matches!(self.obs, Observation::Position | Observation::Linear(_))
+    }
+
+    /// The camera of a camera sensor.
+    pub fn camera(&self) -> Option<&Camera> {
+        match &self.obs {
+            Observation::Camera(c) => Some(c),
+            _ => None,
+        }
+    }
+
+    /// Predicted measurement h(x), or None where it is undefined (behind the camera, at the
+    /// array centre).
+    pub fn measure(&self, x: &SVector<f64, N>) -> Option<Vector3<f64>> {
+        match &self.obs {
+            Observation::Position => Some(position_of(x)),
+            Observation::Linear(h) => Some(h * x),
+            Observation::Direction { origin, elevation } => {
+                let d = position_of(x) - origin;
+                if d.norm() < 1e-6 {
+                    return None;
+                }
+                let el = if *elevation {
+                    d.z.atan2(d.x.hypot(d.y))
+                } else {
+                    0.0
+                };
+                Some(Vector3::new(d.y.atan2(d.x), el, 0.0))
+            }
+            Observation::Cone { origin, axis } => {
+                let d = position_of(x) - origin;
+                let n = d.norm();
+                if n < 1e-6 {
+                    return None;
+                }
+                Some(Vector3::new((axis.dot(&d) / n).clamp(-1.0, 1.0).acos(), 0.0, 0.0))
+            }
+            Observation::Camera(c) => c
+                .project(&position_of(x))
+                .map(|p| Vector3::new(p.x, p.y, 0.0)),
+        }
+    }
+
+    /// h(x) and its Jacobian with respect to the state.
+    pub fn measure_with_jacobian(
+        &self,
+        x: &SVector<f64, N>,
+    ) -> Option<(Vector3<f64>, SMatrix<f64, 3, N>)> {
+        let mut jac = SMatrix::<f64, 3, N>::zeros();
+        let z = match &self.obs {
+            Observation::Position => {
+                for i in 0..3 {
+                    jac[(i, i)] = 1.0;
+                }
+                position_of(x)
+            }
+            Observation::Linear(h) => {
+                jac = *h;
+                h * x
+            }
+            Observation::Direction { origin, elevation } => {
+                let d = position_of(x) - origin;
+                let r2 = d.norm_squared();
+                if r2 < 1e-12 {
+                    return None;
+                }
+                // Floor the horizontal range so a source straight above the array stays finite.
+                let rho2 = (d.x * d.x + d.y * d.y).max(1e-8);
+                let rho = rho2.sqrt();
+                jac[(0, 0)] = -d.y / rho2;
+                jac[(0, 1)] = d.x / rho2;
+                let el = if *elevation {
+                    jac[(1, 0)] = -d.x * d.z / (rho * r2);
+                    jac[(1, 1)] = -d.y * d.z / (rho * r2);
+                    jac[(1, 2)] = rho / r2;
+                    d.z.atan2(d.x.hypot(d.y))
+                } else {
+                    0.0
+                };
+                Vector3::new(d.y.atan2(d.x), el, 0.0)
+            }
+            Observation::Cone { origin, axis } => {
+                let d = position_of(x) - origin;
+                let n = d.norm();
+                if n < 1e-6 {
+                    return None;
+                }
+                let c = (axis.dot(&d) / n).clamp(-1.0, 1.0);
+                // d(theta)/dp = -(axis - c u) / (n sin(theta)); sin floored on the axis.
+                let s = (1.0 - c * c).sqrt().max(1e-3);
+                let g = -(axis - d * (c / n)) / (n * s);
+                for i in 0..3 {
+                    jac[(0, i)] = g[i];
+                }
+                Vector3::new(c.acos(), 0.0, 0.0)
+            }
+            Observation::Camera(c) => {
+                let (p, j) = c.project_with_jacobian(&position_of(x))?;
+                for r in 0..2 {
+                    for col in 0..3 {
+                        jac[(r, col)] = j[(r, col)];
+                    }
+                }
+                Vector3::new(p.x, p.y, 0.0)
+            }
+        };
+        if z.iter().chain(jac.iter()).all(|v| v.is_finite()) {
+            Some((z, jac))
+        } else {
+            None
+        }
+    }
+
+    /// Measurement difference a - b, with the azimuth wrapped to (-pi, pi].
+    pub fn residual(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> Vector3<f64> {
+        let mut d = a - b;
+        if matches!(self.obs, Observation::Direction { .. }) {
+            d[0] = wrap_angle(d[0]);
+        }
+        d
+    }
+
+    /// Detection probability of a track at state `x` given the scan's voice activity.
+    pub fn p_detect_at(&self, x: &SVector<f64, N>, activity: Option<f64>) -> f64 {
+        match &self.obs {
+            Observation::Camera(c) => {
+                if c.in_view(&position_of(x)) {
+                    self.p_detect
+                } else {
+                    0.0
+                }
+            }
+            _ if self.audio => match activity {
+                Some(a) if a.is_finite() => {
+                    (self.p_detect * a.clamp(0.0, 1.0)).max(self.min_p_detect)
+                }
+                _ => self.p_detect,
+            },
+            _ => self.p_detect,
+        }
+    }
+
+    /// Converts a delivered measurement into this sensor's padded measurement vector.
+    pub fn convert(&self, m: &Measurement) -> Result<Vector3<f64>, Rejection> {
+        let finite = |vs: &[f64]| {
+            if vs.iter().all(|v| v.is_finite()) {
+                Ok(())
+            } else {
+                Err(Rejection::NonFinite)
+            }
+        };
+        match (&self.obs, m) {
+            (Observation::Position, Measurement::Position(p)) => {
+                finite(p.as_slice())?;
+                Ok(*p)
+            }
+            (Observation::Direction { elevation, .. }, Measurement::Direction { azimuth, elevation: el }) => {
+                finite(&[*azimuth])?;
+                if *elevation {
+                    let e = el.ok_or(Rejection::WrongKind)?;
+                    finite(&[e])?;
+                    Ok(Vector3::new(wrap_angle(*azimuth), e.clamp(-PI / 2.0, PI / 2.0), 0.0))
+                } else {
+                    Ok(Vector3::new(wrap_angle(*azimuth), 0.0, 0.0))
+                }
+            }
+            (Observation::Cone { axis, .. }, Measurement::Direction { azimuth, elevation }) => {
+                let e = elevation.unwrap_or(0.0);
+                finite(&[*azimuth, e])?;
+                let u = direction_from_angles(*azimuth, e);
+                Ok(Vector3::new(u.dot(axis).clamp(-1.0, 1.0).acos(), 0.0, 0.0))
+            }
+            (Observation::Camera(_), Measurement::Pixel(p)) => {
+                finite(p.as_slice())?;
+                Ok(Vector3::new(p.x, p.y, 0.0))
+            }
+            (Observation::Linear(_), Measurement::Point { z }) => {
+                if z.len() != self.dim {
+                    return Err(Rejection::WrongKind);
+                }
+                finite(z)?;
+                let mut v = Vector3::zeros();
+                for (i, zi) in z.iter().enumerate() {
+                    v[i] = *zi;
+                }
+                Ok(v)
+            }
+            _ => Err(Rejection::WrongKind),
+        }
+    }
+}
+
+/// The depth interval [near, far] (m) of a ray inside `region`, or None if it misses it.
+pub(crate) fn ray_interval(origin: &Vec3, dir: &Vec3, region: &Aabb) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for i in 0..3 {
+        if dir[i].abs() < 1e-12 {
+            if origin[i] < region.min[i] || origin[i] > region.max[i] {
+                return None;
+            }
+            continue;
+        }
+        let a = (region.min[i] - origin[i]) / dir[i];
+        let b = (region.max[i] - origin[i]) / dir[i];
+        t0 = t0.max(a.min(b));
+        t1 = t1.min(a.max(b));
+    }
+    (t1 > t0).then_some((t0, t1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::MicArray;
+    use crate::track::motion::state_of;
+
+    fn direction_sensor(elevation: bool, cone: Option<Vec3>) -> Sensor<6> {
+        let m = SensorModel::AudioDirection {
+            origin: Vec3::new(1.0, 1.0, 1.0),
+            noise_std_rad: 0.05,
+            uses_elevation: elevation,
+            cone_axis: cone,
+            p_detect: 0.6,
+            min_p_detect: 0.02,
+            clutter_rate: 2.0,
+            filter: FilterKind::Ekf,
+        };
+        Sensor::compile(&m, 0, &TrackerConfig::default()).unwrap()
+    }
+
+    fn numeric_jacobian(s: &Sensor<6>, x: &SVector<f64, 6>) -> SMatrix<f64, 3, 6> {
+        let mut j = SMatrix::<f64, 3, 6>::zeros();
+        for c in 0..6 {
+            let mut xp = *x;
+            let mut xm = *x;
+            xp[c] += 1e-6;
+            xm[c] -= 1e-6;
+            let d = s.residual(&s.measure(&xp).unwrap(), &s.measure(&xm).unwrap()) / 2e-6;
+            j.set_column(c, &d);
+        }
+        j
+    }
+
+    #[test]
+    fn direction_and_cone_jacobians_match_finite_differences() {
+        let x = state_of::<6>(&Vec3::new(2.5, -0.3, 1.7), &Vec3::new(0.1, 0.2, 0.0));
+        for s in [
+            direction_sensor(true, None),
+            direction_sensor(false, None),
+            direction_sensor(false, Some(Vec3::new(1.0, 1.0, 0.0))),
+        ] {
+            let (_, j) = s.measure_with_jacobian(&x).unwrap();
+            assert!((j - numeric_jacobian(&s, &x)).amax() < 1e-6, "{:?}", s.obs);
+        }
+    }
+
+    #[test]
+    fn azimuth_residual_wraps_and_cone_measurement_uses_the_axis() {
+        let s = direction_sensor(false, None);
+        let a = Vector3::new(3.1, 0.0, 0.0);
+        let b = Vector3::new(-3.1, 0.0, 0.0);
+        assert!((s.residual(&a, &b)[0] - (6.2 - 2.0 * PI)).abs() < 1e-12);
+        let cone = direction_sensor(false, Some(Vec3::x()));
+        // A direction 60 degrees off the axis, whatever its roll about the axis.
+        let z = cone
+            .convert(&Measurement::Direction {
+                azimuth: 60f64.to_radians(),
+                elevation: None,
+            })
+            .unwrap();
+        assert!((z[0] - 60f64.to_radians()).abs() < 1e-12);
+        let x = state_of::<6>(&Vec3::new(2.0, 1.0, 1.0 + 3f64.sqrt()), &Vec3::zeros());
+        assert!((cone.measure(&x).unwrap()[0] - 60f64.to_radians()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn conversion_rejects_non_finite_and_wrong_kinds() {
+        let s = direction_sensor(true, None);
+        let nan = Measurement::Direction {
+            azimuth: f64::NAN,
+            elevation: Some(0.0),
+        };
+        assert_eq!(s.convert(&nan), Err(Rejection::NonFinite));
+        let no_el = Measurement::Direction {
+            azimuth: 0.1,
+            elevation: None,
+        };
+        assert_eq!(s.convert(&no_el), Err(Rejection::WrongKind));
+        let px = Measurement::Pixel(Pixel::new(1.0, 2.0));
+        assert_eq!(s.convert(&px), Err(Rejection::WrongKind));
+    }
+
+    #[test]
+    fn activity_drives_audio_detection_probability() {
+        let s = direction_sensor(false, None);
+        let x = state_of::<6>(&Vec3::new(3.0, 1.0, 1.0), &Vec3::zeros());
+        assert!((s.p_detect_at(&x, None) - 0.6).abs() < 1e-12);
+        assert!((s.p_detect_at(&x, Some(0.5)) - 0.3).abs() < 1e-12);
+        assert!((s.p_detect_at(&x, Some(0.0)) - 0.02).abs() < 1e-12);
+        assert!((s.p_detect_at(&x, Some(f64::NAN)) - 0.6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn layout_gives_positions_directions_and_cameras() {
+        let lin: Vec<_> = (0..6)
+            .map(|i| Vec3::new(1.0 + 0.04 * i as f64, 2.0, 1.0))
+            .collect();
+        let arrays = vec![MicArray::new("a0", lin, vec![]).unwrap()];
+        let region = Aabb::new(Vec3::zeros(), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let layout = Layout::new(16000, 343.0, arrays, vec![], Some(region)).unwrap();
+        let s = sensors_from_layout(&layout, &TrackerConfig::default());
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].0, SensorKey::ArrayPositions(0));
+        match &s[1].1 {
+            SensorModel::AudioDirection { cone_axis, .. } => assert!(cone_axis.is_some()),
+            m => panic!("{m:?}"),
+        }
+        match &s[0].1 {
+            SensorModel::AudioPosition {
+                clutter_volume_m3, ..
+            } => assert!((clutter_volume_m3 - 50.0).abs() < 1e-9),
+            m => panic!("{m:?}"),
+        }
+    }
+
+    #[test]
+    fn ray_box_interval() {
+        let b = Aabb::new(Vec3::zeros(), Vec3::new(2.0, 2.0, 2.0)).unwrap();
+        let (t0, t1) = ray_interval(&Vec3::new(-1.0, 1.0, 1.0), &Vec3::x(), &b).unwrap();
+        assert!((t0 - 1.0).abs() < 1e-12 && (t1 - 3.0).abs() < 1e-12);
+        assert!(ray_interval(&Vec3::new(-1.0, 5.0, 1.0), &Vec3::x(), &b).is_none());
+    }
+}

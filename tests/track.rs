@@ -1,0 +1,706 @@
+//! Integration tests of the tracker: Vo's standard linear-Gaussian scenario (OSPA), and
+//! behaviour in a room with a camera and microphone arrays.
+
+use avsep::geometry::{Aabb, Camera, Pixel, Vec3, azimuth_of};
+use avsep::label::Label;
+use avsep::track::{
+    BirthTerm, FilterKind, Gaussian, GlmbTracker, Measurement, MotionModel, Scan, SensorModel,
+    StepInput, TrackEstimate, Tracker, TrackerConfig, TrackerKind, build_tracker,
+};
+use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, Poisson};
+
+// ---------------------------------------------------------------------------------------------
+// OSPA (written here on purpose: eval/ is developed in parallel).
+
+/// Minimum-cost assignment of rows to columns (rows <= columns), Kuhn-Munkres with potentials.
+fn hungarian(cost: &[Vec<f64>]) -> Vec<usize> {
+    let (n, m) = (cost.len(), cost[0].len());
+    assert!(n <= m);
+    let (mut u, mut v) = (vec![0.0; n + 1], vec![0.0; m + 1]);
+    let (mut p, mut way) = (vec![0usize; m + 1], vec![0usize; m + 1]);
+    for i in 1..=n {
+        p[0] = i;
+        let mut j0 = 0;
+        let mut minv = vec![f64::INFINITY; m + 1];
+        let mut used = vec![false; m + 1];
+        loop {
+            used[j0] = true;
+            let i0 = p[j0];
+            let (mut delta, mut j1) = (f64::INFINITY, 0);
+            for j in 1..=m {
+                if !used[j] {
+                    let cur = cost[i0 - 1][j - 1] - u[i0] - v[j];
+                    if cur < minv[j] {
+                        minv[j] = cur;
+                        way[j] = j0;
+                    }
+                    if minv[j] < delta {
+                        delta = minv[j];
+                        j1 = j;
+                    }
+                }
+            }
+            for j in 0..=m {
+                if used[j] {
+                    u[p[j]] += delta;
+                    v[j] -= delta;
+                } else {
+                    minv[j] -= delta;
+                }
+            }
+            j0 = j1;
+            if p[j0] == 0 {
+                break;
+            }
+        }
+        loop {
+            let j1 = way[j0];
+            p[j0] = p[j1];
+            j0 = j1;
+            if j0 == 0 {
+                break;
+            }
+        }
+    }
+    let mut out = vec![0; n];
+    for j in 1..=m {
+        if p[j] != 0 {
+            out[p[j] - 1] = j - 1;
+        }
+    }
+    out
+}
+
+/// OSPA distance of order p with cut-off c between two point sets.
+fn ospa(x: &[Vec3], y: &[Vec3], c: f64, p: f64) -> f64 {
+    let (small, large) = if x.len() <= y.len() { (x, y) } else { (y, x) };
+    if large.is_empty() {
+        return 0.0;
+    }
+    if small.is_empty() {
+        return c;
+    }
+    let cost: Vec<Vec<f64>> = small
+        .iter()
+        .map(|a| large.iter().map(|b| (a - b).norm().min(c).powf(p)).collect())
+        .collect();
+    let assignment = hungarian(&cost);
+    let matched: f64 = assignment.iter().enumerate().map(|(i, &j)| cost[i][j]).sum();
+    let extra = (large.len() - small.len()) as f64 * c.powf(p);
+    ((matched + extra) / large.len() as f64).powf(1.0 / p)
+}
+
+#[test]
+fn ospa_brute_force_check() {
+    let x = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(10.0, 0.0, 0.0)];
+    let y = [Vec3::new(9.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(500.0, 0.0, 0.0)];
+    // Best pairing: (0,1) and (10,9) cost 2; one unmatched at c = 100: (2 + 100) / 3.
+    assert!((ospa(&x, &y, 100.0, 1.0) - 34.0).abs() < 1e-12);
+    assert_eq!(ospa(&[], &[], 100.0, 1.0), 0.0);
+    assert_eq!(ospa(&x, &[], 100.0, 1.0), 100.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Vo's standard linear-Gaussian scenario (Vo, Vo & Hoang 2017 / the GLMB toolbox).
+
+const VO_STEPS: usize = 100;
+
+/// [x vx y vy] at birth, birth step, last step (inclusive).
+const VO_TARGETS: [([f64; 4], usize, usize); 12] = [
+    ([0.0, 0.0, 0.0, -10.0], 1, 70),
+    ([400.0, -10.0, -600.0, 5.0], 1, 100),
+    ([-800.0, 20.0, -200.0, -5.0], 1, 70),
+    ([400.0, -7.0, -600.0, -4.0], 20, 100),
+    ([400.0, -2.5, -600.0, 10.0], 20, 100),
+    ([0.0, 7.5, 0.0, -5.0], 20, 100),
+    ([-800.0, 12.0, -200.0, 7.0], 40, 100),
+    ([-200.0, 15.0, 800.0, -10.0], 40, 100),
+    ([-800.0, 3.0, -200.0, 15.0], 60, 100),
+    ([-200.0, -3.0, 800.0, -15.0], 60, 100),
+    ([0.0, -20.0, 0.0, -15.0], 80, 100),
+    ([-200.0, 15.0, 800.0, -5.0], 80, 100),
+];
+
+/// True positions per step (k = 1..=100), noiseless constant velocity with T = 1.
+fn vo_truth() -> Vec<Vec<Vec3>> {
+    let mut truth = vec![Vec::new(); VO_STEPS];
+    for (x0, birth, death) in VO_TARGETS {
+        let [mut x, vx, mut y, vy] = x0;
+        for k in birth..=death.min(VO_STEPS) {
+            truth[k - 1].push(Vec3::new(x, y, 0.0));
+            x += vx;
+            y += vy;
+        }
+    }
+    truth
+}
+
+/// Measurements: P_D 0.98, N(0, 10^2 I) noise, Poisson(30) clutter uniform on [-1000, 1000]^2.
+fn vo_measurements(truth: &[Vec<Vec3>], seed: u64) -> Vec<Vec<Measurement>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, 10.0).unwrap();
+    let clutter = Poisson::new(30.0).unwrap();
+    truth
+        .iter()
+        .map(|objs| {
+            let mut z = Vec::new();
+            for p in objs {
+                if rng.random::<f64>() < 0.98 {
+                    z.push(Measurement::Point {
+                        z: vec![p.x + noise.sample(&mut rng), p.y + noise.sample(&mut rng)],
+                    });
+                }
+            }
+            let n: f64 = clutter.sample(&mut rng);
+            for _ in 0..n as usize {
+                z.push(Measurement::Point {
+                    z: vec![
+                        rng.random_range(-1000.0..1000.0),
+                        rng.random_range(-1000.0..1000.0),
+                    ],
+                });
+            }
+            z
+        })
+        .collect()
+}
+
+/// The GLMB configured for Vo's model: state [x y vx vy], constant velocity sigma_v = 5,
+/// P_S 0.99, four LMB birth terms r = 0.03, 1000 requested hypotheses, the plain estimator.
+fn vo_tracker(seed: u64) -> GlmbTracker<4> {
+    let mut cfg = TrackerConfig::default();
+    cfg.survival_probability = 0.99;
+    cfg.gate_probability = 0.9999999;
+    cfg.birth.from_measurements = false;
+    cfg.estimator.hysteresis_steps = 0;
+    cfg.glmb.requested_hypotheses = 1000;
+    cfg.glmb.max_hypotheses = 1000;
+    let motion = MotionModel::<4>::ConstantVelocity {
+        accel_std_m_per_s2: [5.0, 5.0, 0.0],
+    };
+    let sensor = SensorModel::GenericPoint {
+        h: DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]),
+        r: DMatrix::from_diagonal_element(2, 2, 100.0),
+        p_detect: 0.98,
+        clutter_rate: 30.0,
+        clutter_density: 1.0 / (2000.0 * 2000.0),
+    };
+    let births = [[0.1, 0.1], [400.0, -600.0], [-800.0, -200.0], [-200.0, 800.0]]
+        .iter()
+        .map(|p| BirthTerm {
+            density: Gaussian {
+                mean: SVector::<f64, 4>::new(p[0], p[1], 0.0, 0.0),
+                cov: SMatrix::<f64, 4, 4>::identity() * 100.0,
+            },
+            existence: 0.03,
+        })
+        .collect();
+    GlmbTracker::new(&cfg, motion, vec![sensor], None, births, seed).unwrap()
+}
+
+fn vo_run(seed: u64) -> Vec<f64> {
+    let truth = vo_truth();
+    let meas = vo_measurements(&truth, 1000 + seed);
+    let mut tracker = vo_tracker(seed);
+    (0..VO_STEPS)
+        .map(|k| {
+            let est = tracker.step(&StepInput {
+                k: k as u64 + 1,
+                t: k as f64 + 1.0,
+                scans: vec![Scan {
+                    sensor: 0,
+                    measurements: meas[k].clone(),
+                    activity: None,
+                }],
+            });
+            let pos: Vec<Vec3> = est.iter().map(|e| e.position).collect();
+            ospa(&pos, &truth[k], 100.0, 1.0)
+        })
+        .collect()
+}
+
+#[test]
+fn vo_linear_gaussian_scenario_mean_ospa() {
+    let seeds = 20;
+    let mut total = 0.0;
+    let mut per_step = vec![0.0; VO_STEPS];
+    for seed in 0..seeds {
+        let o = vo_run(seed);
+        for (a, b) in per_step.iter_mut().zip(&o) {
+            *a += b / seeds as f64;
+        }
+        total += o.iter().sum::<f64>() / VO_STEPS as f64;
+    }
+    let mean = total / seeds as f64;
+    println!("Vo scenario: mean OSPA(c=100, p=1) over {seeds} seeds = {mean:.3}");
+    let late: f64 = per_step[85..].iter().sum::<f64>() / 15.0;
+    println!("  mean over steps 86-100 (12 targets established) = {late:.3}");
+    assert!(mean <= 11.5, "mean OSPA {mean}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// A room: 6 x 5 x 2.5 m, a camera on the y = 0 wall, arrays on the walls.
+
+const DT: f64 = 0.128;
+
+fn room() -> Aabb {
+    Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(6.0, 5.0, 2.5)).unwrap()
+}
+
+/// A camera at (3, 0.05, 2.0) looking along +y, pitched 15 degrees down, 1000 px focal length.
+fn camera() -> Camera {
+    let k = Matrix3::new(1000.0, 0.0, 960.0, 0.0, 1000.0, 540.0, 0.0, 0.0, 1.0);
+    let (s, c) = 15f64.to_radians().sin_cos();
+    // Rows: camera x, y (down), z (forward) in world coordinates.
+    let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, -s, -c, 0.0, c, -s);
+    let centre = Vec3::new(3.0, 0.05, 2.0);
+    Camera::from_krt("cam", 1920.0, 1080.0, k, r, -(r * centre), None).unwrap()
+}
+
+fn camera_sensor() -> SensorModel {
+    SensorModel::CameraPoint {
+        camera: Box::new(camera()),
+        noise_std_px: 10.0,
+        p_detect: 0.9,
+        clutter_rate: 1.0,
+        filter: FilterKind::Ukf,
+    }
+}
+
+fn position_sensor() -> SensorModel {
+    SensorModel::AudioPosition {
+        noise_std_m: 0.1,
+        p_detect: 0.6,
+        min_p_detect: 0.02,
+        clutter_rate: 10.0,
+        clutter_volume_m3: room().volume(),
+    }
+}
+
+fn direction_sensor(origin: Vec3) -> SensorModel {
+    SensorModel::AudioDirection {
+        origin,
+        noise_std_rad: 3f64.to_radians(),
+        uses_elevation: false,
+        cone_axis: None,
+        p_detect: 0.6,
+        min_p_detect: 0.02,
+        clutter_rate: 2.0,
+        filter: FilterKind::Ekf,
+    }
+}
+
+/// Sensor indices of the room set-ups.
+const CAM: usize = 0;
+const POS: usize = 1;
+const DIR_A: usize = 2;
+const DIR_B: usize = 3;
+
+fn room_sensors() -> Vec<SensorModel> {
+    vec![
+        camera_sensor(),
+        position_sensor(),
+        direction_sensor(Vec3::new(0.1, 2.5, 1.0)),
+        direction_sensor(Vec3::new(5.9, 4.9, 1.0)),
+    ]
+}
+
+fn room_tracker(cfg: &TrackerConfig, seed: u64) -> Box<dyn Tracker> {
+    build_tracker(cfg, room_sensors(), Some(room()), seed).unwrap()
+}
+
+/// Synthetic measurements of the room sensors for sources at `sources` (speaking flags).
+struct RoomSim {
+    rng: ChaCha8Rng,
+}
+
+impl RoomSim {
+    fn new(seed: u64) -> Self {
+        Self {
+            rng: ChaCha8Rng::seed_from_u64(seed),
+        }
+    }
+
+    fn normal(&mut self, sd: f64) -> f64 {
+        Normal::new(0.0, sd).unwrap().sample(&mut self.rng)
+    }
+
+    fn camera_scan(&mut self, sources: &[Vec3], p_detect: f64) -> Scan {
+        let cam = camera();
+        let mut z = Vec::new();
+        for s in sources {
+            if let Some(px) = cam.project(s) {
+                if cam.contains_pixel(&px) && self.rng.random::<f64>() < p_detect {
+                    let (nu, nv) = (self.normal(5.0), self.normal(5.0));
+                    z.push(Measurement::Pixel(Pixel::new(px.x + nu, px.y + nv)));
+                }
+            }
+        }
+        Scan {
+            sensor: CAM,
+            measurements: z,
+            activity: None,
+        }
+    }
+
+    fn position_scan(&mut self, speaking: &[Vec3], activity: f64, clutter: usize) -> Scan {
+        let mut z = Vec::new();
+        for s in speaking {
+            if self.rng.random::<f64>() < 0.6 {
+                let n = Vec3::new(self.normal(0.1), self.normal(0.1), self.normal(0.1));
+                z.push(Measurement::Position(s + n));
+            }
+        }
+        for _ in 0..clutter {
+            z.push(Measurement::Position(room().sample(&mut self.rng)));
+        }
+        Scan {
+            sensor: POS,
+            measurements: z,
+            activity: Some(activity),
+        }
+    }
+
+    fn direction_scan(&mut self, sensor: usize, origin: Vec3, speaking: &[Vec3], activity: f64) -> Scan {
+        let mut z = Vec::new();
+        for s in speaking {
+            if self.rng.random::<f64>() < 0.8 {
+                let az = azimuth_of(&(s - origin)) + self.normal(2f64.to_radians());
+                z.push(Measurement::Direction {
+                    azimuth: az,
+                    elevation: None,
+                });
+            }
+        }
+        if self.rng.random::<f64>() < 0.5 {
+            let az = self.rng.random_range(-3.14..3.14);
+            z.push(Measurement::Direction {
+                azimuth: az,
+                elevation: None,
+            });
+        }
+        Scan {
+            sensor,
+            measurements: z,
+            activity: Some(activity),
+        }
+    }
+}
+
+fn nearest<'a>(est: &'a [TrackEstimate], p: &Vec3) -> Option<&'a TrackEstimate> {
+    est.iter()
+        .min_by(|a, b| (a.position - p).norm().total_cmp(&(b.position - p).norm()))
+}
+
+#[test]
+fn a_track_is_born_from_measurements_and_converges_on_the_source() {
+    let source = Vec3::new(2.2, 3.1, 1.6);
+    let mut tracker = room_tracker(&TrackerConfig::default(), 1);
+    let mut sim = RoomSim::new(2);
+    let mut first_seen = None;
+    let mut out = Vec::new();
+    for k in 0..30 {
+        let scans = vec![
+            sim.camera_scan(&[source], 0.9),
+            sim.position_scan(&[source], 1.0, 10),
+        ];
+        out = tracker.step(&StepInput {
+            k,
+            t: k as f64 * DT,
+            scans,
+        });
+        if first_seen.is_none() && !out.is_empty() {
+            first_seen = Some(k);
+        }
+    }
+    let first = first_seen.expect("a track was born");
+    println!("born at step {first} ({:.2} s)", first as f64 * DT);
+    assert!(first as f64 * DT <= 0.5, "born after {first} steps");
+    assert_eq!(out.len(), 1, "{out:?}");
+    let err = (out[0].position - source).norm();
+    println!("position error after 30 steps: {err:.3} m");
+    assert!(err < 0.1, "error {err}");
+    assert!(out[0].existence > 0.9);
+    assert!(out[0].speaking > 0.3, "speaking {}", out[0].speaking);
+    assert!(out.iter().all(|e| e.covariance.iter().all(|v| v.is_finite())));
+}
+
+#[test]
+fn a_label_survives_a_two_second_audio_only_pause() {
+    // Audio only: 3-D position candidates with 10 clutter per step, two arrays' directions.
+    let source = Vec3::new(4.0, 2.0, 1.5);
+    let mut tracker = room_tracker(&TrackerConfig::default(), 3);
+    let mut sim = RoomSim::new(4);
+    let dir_a = Vec3::new(0.1, 2.5, 1.0);
+    let dir_b = Vec3::new(5.9, 4.9, 1.0);
+    let mut label: Option<Label> = None;
+    let speech = |k: u64| !(25..41).contains(&k); // 16 silent steps = 2.05 s
+    for k in 0..60u64 {
+        let (speaking, activity): (Vec<Vec3>, f64) = if speech(k) {
+            (vec![source], 1.0)
+        } else {
+            (vec![], 0.02)
+        };
+        let clutter = if speech(k) { 10 } else { 3 };
+        let scans = vec![
+            sim.position_scan(&speaking, activity, clutter),
+            sim.direction_scan(DIR_A, dir_a, &speaking, activity),
+            sim.direction_scan(DIR_B, dir_b, &speaking, activity),
+        ];
+        let out = tracker.step(&StepInput {
+            k,
+            t: k as f64 * DT,
+            scans,
+        });
+        if k >= 15 {
+            let e = nearest(&out, &source).unwrap_or_else(|| panic!("step {k}: no track"));
+            assert!((e.position - source).norm() < 0.5, "step {k}: {e:?}");
+            match label {
+                None => label = Some(e.label),
+                Some(l) => assert_eq!(e.label, l, "step {k}: label changed"),
+            }
+            if (36..41).contains(&k) {
+                assert!(e.speaking < 0.2, "step {k}: speaking {}", e.speaking);
+            }
+        }
+    }
+}
+
+#[test]
+fn two_crossing_targets_keep_their_labels() {
+    // Two speakers walk past each other at 0.8 m/s; camera + audio candidates.
+    let mut tracker = room_tracker(&TrackerConfig::default(), 5);
+    let mut sim = RoomSim::new(6);
+    let path = |i: usize, t: f64| -> Vec3 {
+        let x = if i == 0 { 1.0 + 0.8 * t } else { 5.0 - 0.8 * t };
+        Vec3::new(x.clamp(1.0, 5.0), 3.0 + if i == 0 { 0.25 } else { -0.25 }, 1.6)
+    };
+    let mut labels: [Option<Label>; 2] = [None, None];
+    let (mut err_sum, mut err_n) = (0.0, 0);
+    for k in 0..60u64 {
+        let t = (k as f64 - 10.0).max(0.0) * DT;
+        let sources = [path(0, t), path(1, t)];
+        let scans = vec![
+            sim.camera_scan(&sources, 0.9),
+            sim.position_scan(&sources, 1.0, 10),
+        ];
+        let out = tracker.step(&StepInput {
+            k,
+            t: k as f64 * DT,
+            scans,
+        });
+        if k >= 10 {
+            assert_eq!(out.len(), 2, "step {k}: {out:?}");
+            for i in 0..2 {
+                let e = nearest(&out, &sources[i]).unwrap();
+                let err = (e.position - sources[i]).norm();
+                // A single step can follow a clutter candidate (P_D 0.6 audio, 10 clutter per
+                // step, Langevin sigma 1.2 m/s); the mean error is the accuracy check.
+                assert!(err < 0.6, "step {k} target {i}: {e:?}");
+                err_sum += err;
+                err_n += 1;
+                match labels[i] {
+                    None => labels[i] = Some(e.label),
+                    Some(l) => assert_eq!(e.label, l, "step {k}: target {i} changed label"),
+                }
+            }
+        }
+    }
+    assert_ne!(labels[0], labels[1]);
+    let mean = err_sum / err_n as f64;
+    println!("crossing targets: mean position error {mean:.3} m");
+    assert!(mean < 0.15, "mean error {mean}");
+}
+
+#[test]
+fn an_absent_camera_does_not_penalise_but_an_empty_scan_does() {
+    let source = Vec3::new(3.0, 2.5, 1.6);
+    // Track with camera and audio, then three steps in which the speaker is silent (no audio
+    // measurement, activity 0) and the camera either sends no frame or a frame with no face.
+    let run = |camera_frame: bool| -> Vec<f64> {
+        let mut tracker = room_tracker(&TrackerConfig::default(), 7);
+        let mut sim = RoomSim::new(8);
+        for k in 0..15u64 {
+            let scans = vec![sim.camera_scan(&[source], 1.0), sim.position_scan(&[source], 1.0, 0)];
+            tracker.step(&StepInput {
+                k,
+                t: k as f64 * DT,
+                scans,
+            });
+        }
+        (15..18u64)
+            .map(|k| {
+                let mut scans = vec![sim.position_scan(&[], 0.0, 0)];
+                if camera_frame {
+                    scans.push(Scan {
+                        sensor: CAM,
+                        measurements: vec![],
+                        activity: None,
+                    });
+                }
+                let out = tracker.step(&StepInput {
+                    k,
+                    t: k as f64 * DT,
+                    scans,
+                });
+                out.iter()
+                    .find(|e| (e.position - source).norm() < 0.5)
+                    .map_or(0.0, |e| e.existence)
+            })
+            .collect()
+    };
+    let absent = run(false);
+    let empty = run(true);
+    println!("existence over 3 steps: camera absent {absent:.4?}, camera saw nothing {empty:.4?}");
+    assert!(absent.iter().all(|&r| r > 0.99), "absent camera: {absent:?}");
+    assert!(empty[0] < absent[0], "{empty:?} vs {absent:?}");
+    assert!(empty[1] < empty[0] && empty[1] < 0.99, "{empty:?}");
+    // After a third frame without the face, the track is ended (or nearly).
+    assert!(empty[2] < 0.7, "{empty:?}");
+}
+
+#[test]
+fn a_camera_detection_and_an_audio_direction_give_a_birth_at_their_intersection() {
+    let source = Vec3::new(1.5, 3.5, 1.0);
+    let mut tracker = room_tracker(&TrackerConfig::default(), 9);
+    let cam = camera();
+    let px = cam.project(&source).unwrap();
+    let dir_a = Vec3::new(0.1, 2.5, 1.0);
+    let scans = || {
+        vec![
+            Scan {
+                sensor: CAM,
+                measurements: vec![Measurement::Pixel(px)],
+                activity: None,
+            },
+            Scan {
+                sensor: DIR_A,
+                measurements: vec![Measurement::Direction {
+                    azimuth: azimuth_of(&(source - dir_a)),
+                    elevation: None,
+                }],
+                activity: Some(1.0),
+            },
+        ]
+    };
+    let first = tracker.step(&StepInput {
+        k: 0,
+        t: 0.0,
+        scans: scans(),
+    });
+    assert!(first.is_empty(), "births are offered from the next step");
+    let out = tracker.step(&StepInput {
+        k: 1,
+        t: DT,
+        scans: scans(),
+    });
+    assert_eq!(out.len(), 1, "{out:?}");
+    let err = (out[0].position - source).norm();
+    println!("birth at the ray intersection: error {err:.3} m");
+    assert!(err < 0.15, "{:?} vs {source:?}", out[0].position);
+}
+
+#[test]
+fn bad_input_is_dropped_and_counted_and_never_yields_nan() {
+    for kind in [TrackerKind::Glmb, TrackerKind::Gmphd] {
+        let mut cfg = TrackerConfig::default();
+        cfg.tracker = kind;
+        let mut tracker = room_tracker(&cfg, 11);
+        let mut sim = RoomSim::new(12);
+        let source = Vec3::new(3.0, 2.0, 1.5);
+        let behind = Vec3::new(3.0, -1.0, 1.5);
+        for k in 0..40u64 {
+            let mut scans = vec![
+                sim.camera_scan(&[source], 0.9),
+                sim.position_scan(&[source, behind], 1.0, 5),
+            ];
+            scans[0].measurements.push(Measurement::Pixel(Pixel::new(f64::NAN, 3.0)));
+            scans[1].measurements.push(Measurement::Position(Vec3::new(1.0, f64::INFINITY, 0.0)));
+            // Wrong kinds, unknown sensors, a direction from the array centre itself, huge values.
+            scans[1].measurements.push(Measurement::Pixel(Pixel::new(1.0, 1.0)));
+            scans.push(Scan {
+                sensor: 99,
+                measurements: vec![],
+                activity: None,
+            });
+            scans.push(Scan {
+                sensor: DIR_A,
+                measurements: vec![
+                    Measurement::Direction {
+                        azimuth: 1e300,
+                        elevation: None,
+                    },
+                    Measurement::Direction {
+                        azimuth: f64::NAN,
+                        elevation: None,
+                    },
+                ],
+                activity: Some(f64::NAN),
+            });
+            if k % 7 == 3 {
+                scans[1].measurements.push(Measurement::Position(Vec3::new(1e200, -1e200, 1e200)));
+            }
+            // Time repeats and jumps backwards now and then.
+            let t = if k % 10 == 5 { 0.0 } else { k as f64 * DT };
+            let out = tracker.step(&StepInput { k, t, scans });
+            for e in &out {
+                let finite = e.position.iter().chain(e.velocity.iter()).all(|v| v.is_finite())
+                    && e.covariance.iter().all(|v| v.is_finite())
+                    && e.existence.is_finite()
+                    && e.speaking.is_finite();
+                assert!(finite, "{kind:?} step {k}: {e:?}");
+            }
+        }
+        let s = tracker.stats();
+        println!("{kind:?}: {s:?}");
+        assert_eq!(s.non_finite_measurements, 40 * 3);
+        assert_eq!(s.mismatched_measurements, 40);
+        assert_eq!(s.unknown_sensor_scans, 40);
+        assert!(s.non_monotonic_steps >= 4);
+    }
+}
+
+#[test]
+fn gmphd_tracks_and_keeps_labels_of_two_static_speakers() {
+    let mut cfg = TrackerConfig::default();
+    cfg.tracker = TrackerKind::Gmphd;
+    let mut tracker = room_tracker(&cfg, 13);
+    let mut sim = RoomSim::new(14);
+    let sources = [Vec3::new(2.0, 3.0, 1.6), Vec3::new(4.0, 2.0, 1.5)];
+    let mut labels: [Option<Label>; 2] = [None, None];
+    let mut found = [0usize; 2];
+    let steps = 40u64;
+    for k in 0..steps {
+        let scans = vec![sim.camera_scan(&sources, 0.9), sim.position_scan(&sources, 1.0, 5)];
+        let out = tracker.step(&StepInput {
+            k,
+            t: k as f64 * DT,
+            scans,
+        });
+        if k < 10 {
+            continue;
+        }
+        for i in 0..2 {
+            // A PHD estimate needs weight > 0.5: a step where every sensor misses a target hides
+            // it (spec 002 6.4); the label must come back unchanged (coasting).
+            let Some(e) = nearest(&out, &sources[i]).filter(|e| (e.position - sources[i]).norm() < 0.3)
+            else {
+                continue;
+            };
+            found[i] += 1;
+            match labels[i] {
+                None => labels[i] = Some(e.label),
+                Some(l) => assert_eq!(e.label, l, "step {k}: target {i}"),
+            }
+        }
+    }
+    println!("GM-PHD: targets estimated in {found:?} of {} steps", steps - 10);
+    // The PHD shares a camera detection between every component on its ray (a depth-ambiguous
+    // camera-only birth keeps some weight), so a target is not estimated in every step; label
+    // continuity is what this test is about.
+    assert!(found.iter().all(|&n| n >= 15), "{found:?}");
+    assert_ne!(labels[0], labels[1]);
+}
