@@ -97,7 +97,7 @@ impl Default for RlsConfig {
             forgetting: 0.99,
             init_regularisation: 1e-2,
             leakage: 1e-3,
-            max_norm_ratio: 3.0,
+            max_norm_ratio: 10.0,
         }
     }
 }
@@ -142,8 +142,8 @@ pub struct AdaptationConfig {
 impl Default for AdaptationConfig {
     fn default() -> Self {
         Self {
-            presence_low: 0.2,
-            presence_high: 0.6,
+            presence_low: 0.1,
+            presence_high: 0.4,
             per_bin: true,
             power_smoothing: 0.5,
         }
@@ -168,6 +168,12 @@ pub struct PostFilterConfig {
     pub mask_threshold: f64,
     /// `wiener`: include the stationary noise floor (minimum tracking) in the denominator.
     pub noise_floor: bool,
+    /// Weight of the reference microphone's power that no label's output explains (untracked
+    /// talkers, noise) as one more competitor of every label; 0 ignores it.
+    pub untracked_weight: f64,
+    /// How much more power than the labels' outputs the reference microphone may carry before the
+    /// excess counts as untracked (their reverberation, which the beamformers remove).
+    pub untracked_margin: f64,
     /// Rise of the tracked noise floor per second (dB/s) when the power stays above it.
     pub noise_rise_db_per_s: f64,
 }
@@ -177,11 +183,13 @@ impl Default for PostFilterConfig {
         Self {
             kind: PostFilterKind::Wiener,
             apply_to: PostFilterTarget::ReferenceMic,
-            gain_floor: 0.1,
+            gain_floor: 0.05,
             power_smoothing: 0.3,
-            exponent: 1.0,
+            exponent: 2.0,
             mask_threshold: 1.0,
-            noise_floor: true,
+            noise_floor: false,
+            untracked_weight: 0.0,
+            untracked_margin: 1.0,
             noise_rise_db_per_s: 5.0,
         }
     }
@@ -318,6 +326,18 @@ impl SeparatorConfig {
         in_range("post_filter.power_smoothing", p.power_smoothing, 0.0, 0.999)?;
         in_range("post_filter.exponent", p.exponent, 0.1, 10.0)?;
         in_range("post_filter.mask_threshold", p.mask_threshold, 1e-3, 1e3)?;
+        in_range(
+            "post_filter.untracked_weight",
+            p.untracked_weight,
+            0.0,
+            100.0,
+        )?;
+        in_range(
+            "post_filter.untracked_margin",
+            p.untracked_margin,
+            1.0,
+            1000.0,
+        )?;
         in_range(
             "post_filter.noise_rise_db_per_s",
             p.noise_rise_db_per_s,

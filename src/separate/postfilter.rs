@@ -45,6 +45,8 @@ pub struct PostFilter {
     exponent: f64,
     threshold: f64,
     use_noise: bool,
+    untracked: f64,
+    margin: f64,
     rise: f64,
 }
 
@@ -58,6 +60,8 @@ impl PostFilter {
             exponent: cfg.exponent,
             threshold: cfg.mask_threshold,
             use_noise: cfg.noise_floor,
+            untracked: cfg.untracked_weight,
+            margin: cfg.untracked_margin,
             rise: 10f64.powf(cfg.noise_rise_db_per_s / 10.0 / frames_per_s),
         }
     }
@@ -68,27 +72,41 @@ impl PostFilter {
     }
 
     /// Updates every label's state at one bin from its beamformer output and writes its gain.
-    pub fn gains(&self, outputs: &[Complex], state: &mut [PostState], gains: &mut [f64]) {
+    /// `reference` is the reference microphone's value and its smoothed power (state).
+    pub fn gains(
+        &self,
+        outputs: &[Complex],
+        state: &mut [PostState],
+        reference: (Complex, &mut f64),
+        gains: &mut [f64],
+    ) {
         let n = outputs.len();
+        let mut explained = 0.0;
         for (s, o) in state.iter_mut().zip(outputs) {
             let p = o.norm_sqr();
             s.power = self.alpha * s.power + (1.0 - self.alpha) * p;
             s.slow = NOISE_SMOOTHING * s.slow + (1.0 - NOISE_SMOOTHING) * p;
             s.noise = s.slow.min(s.noise * self.rise);
+            explained += s.power;
         }
+        let (yref, pref) = reference;
+        *pref = self.alpha * *pref + (1.0 - self.alpha) * yref.norm_sqr();
+        // Power at the reference microphone that no label accounts for.
+        let residual = self.untracked * (*pref - self.margin * explained).max(0.0);
         match self.kind {
             PostFilterKind::None => gains[..n].fill(1.0),
             PostFilterKind::Mask => {
                 for i in 0..n {
                     let pi = state[i].power;
-                    let wins = (0..n).all(|j| j == i || pi >= self.threshold * state[j].power);
+                    let wins = (0..n).all(|j| j == i || pi >= self.threshold * state[j].power)
+                        && pi >= self.threshold * residual;
                     gains[i] = if wins { 1.0 } else { self.floor };
                 }
             }
             PostFilterKind::Wiener => {
                 let a = self.exponent;
                 let pow = |x: f64| if a == 1.0 { x } else { x.powf(a) };
-                let mut total = 0.0;
+                let mut total = pow(residual);
                 for (g, s) in gains.iter_mut().zip(state.iter()) {
                     let xi = if self.use_noise {
                         (s.power - NOISE_BIAS * s.noise).max(0.0)
@@ -126,6 +144,9 @@ mod tests {
             &PostFilterConfig {
                 kind,
                 power_smoothing: smoothing,
+                gain_floor: 0.1,
+                exponent: 1.0,
+                noise_floor: true,
                 ..PostFilterConfig::default()
             },
             31.25,
@@ -142,10 +163,15 @@ mod tests {
             Complex::new(0.0, 2.0),
             Complex::new(0.5, 0.0),
         ];
-        f.gains(&out, &mut st, &mut g);
+        f.gains(&out, &mut st, (Complex::new(0.0, 0.0), &mut 0.0), &mut g);
         assert_eq!(g, vec![0.1, 1.0, 0.1]);
         let mut one = vec![PostState::default()];
-        f.gains(&out[..1], &mut one, &mut g[..1]);
+        f.gains(
+            &out[..1],
+            &mut one,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g[..1],
+        );
         assert_eq!(g[0], 1.0);
     }
 
@@ -158,17 +184,24 @@ mod tests {
         f.gains(
             &[Complex::new(3.0, 0.0), Complex::new(1.0, 0.0)],
             &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
             &mut g,
         );
         assert!((g[0] - 0.9).abs() < 1e-12 && (g[1] - 0.1).abs() < 1e-12);
         f.gains(
             &[Complex::new(10.0, 0.0), Complex::new(0.1, 0.0)],
             &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
             &mut g,
         );
         assert_eq!(g[1], 0.1);
         // Silence gives the floor, not NaN.
-        f.gains(&[Complex::new(0.0, 0.0); 2], &mut st, &mut g);
+        f.gains(
+            &[Complex::new(0.0, 0.0); 2],
+            &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g,
+        );
         assert!(g.iter().all(|x| x.is_finite()));
     }
 
@@ -183,7 +216,12 @@ mod tests {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
             let ph = (s >> 11) as f64 / (1u64 << 53) as f64 * 6.283;
             let burst = if n % 50 == 49 { 30.0 } else { 1.0 };
-            f.gains(&[Complex::from_polar(burst, ph)], &mut st, &mut g);
+            f.gains(
+                &[Complex::from_polar(burst, ph)],
+                &mut st,
+                (Complex::new(0.0, 0.0), &mut 0.0),
+                &mut g,
+            );
             if n > 100 && n % 50 == 49 {
                 assert!(g[0] > 0.9, "burst gain {}", g[0]);
             } else if n > 100 && n % 50 < 40 {

@@ -87,6 +87,8 @@ pub struct Separator {
     post: PostFilter,
     psd: Vec<f64>,
     psd_ready: bool,
+    /// Smoothed power of the reference microphone per bin (post-filter).
+    ref_power: Vec<f64>,
     streams: Vec<Stream>,
     record: bool,
     work: Work,
@@ -116,6 +118,7 @@ impl Separator {
             post: PostFilter::new(&cfg.post_filter, 1.0),
             psd: Vec::new(),
             psd_ready: false,
+            ref_power: Vec::new(),
             streams: Vec::new(),
             record: false,
             work: Work::default(),
@@ -289,6 +292,7 @@ impl Separator {
         let bins = geom.bins();
         if bins != self.bins {
             self.psd = vec![0.0; bins];
+            self.ref_power = vec![0.0; bins];
             self.psd_ready = false;
             for s in &mut self.streams {
                 s.needs_reset = true;
@@ -707,10 +711,15 @@ impl Separator {
         for (p, s) in w.post.iter_mut().zip(&self.streams) {
             *p = s.post[k];
         }
-        self.post.gains(&w.bf, &mut w.post, &mut w.gains);
+        let yref = w.y[k * self.channels + self.reference];
+        self.post.gains(
+            &w.bf,
+            &mut w.post,
+            (yref, &mut self.ref_power[k]),
+            &mut w.gains,
+        );
         let to_ref =
             self.cfg.post_filter.apply_to == PostFilterTarget::ReferenceMic && self.post.enabled();
-        let yref = w.y[k * self.channels + self.reference];
         let ch = self.channels;
         for (((s, p), (g, b)), (_, o)) in self
             .streams
