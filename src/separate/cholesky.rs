@@ -1,0 +1,141 @@
+//! Small dense Hermitian positive-definite systems (at most a few dozen unknowns), solved by
+//! Cholesky factorisation in place on row-major slices, without allocation.
+
+use crate::dsp::Complex;
+
+/// Factors the Hermitian positive-definite `n x n` matrix `a` (row-major, both triangles set) in
+/// place into its lower Cholesky factor L with A = L L^H (the upper triangle is left stale).
+/// Returns false when a pivot is not positive and finite (not positive definite).
+pub fn factor(a: &mut [Complex], n: usize) -> bool {
+    for j in 0..n {
+        let mut diag = a[j * n + j].re;
+        for p in 0..j {
+            diag -= a[j * n + p].norm_sqr();
+        }
+        if !(diag > 0.0 && diag.is_finite()) {
+            return false;
+        }
+        let ljj = diag.sqrt();
+        a[j * n + j] = Complex::new(ljj, 0.0);
+        let inv = 1.0 / ljj;
+        for i in j + 1..n {
+            let mut s = a[i * n + j];
+            for p in 0..j {
+                s -= a[i * n + p] * a[j * n + p].conj();
+            }
+            a[i * n + j] = s * inv;
+        }
+    }
+    true
+}
+
+/// Solves L L^H x = b in place (`b` becomes x) with the factor from [`factor`].
+pub fn solve(l: &[Complex], n: usize, b: &mut [Complex]) {
+    // Forward: L z = b.
+    for i in 0..n {
+        let mut s = b[i];
+        for p in 0..i {
+            s -= l[i * n + p] * b[p];
+        }
+        b[i] = s / l[i * n + i].re;
+    }
+    // Backward: L^H x = z.
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for p in i + 1..n {
+            s -= l[p * n + i].conj() * b[p];
+        }
+        b[i] = s / l[i * n + i].re;
+    }
+}
+
+/// Inverts the factored matrix: writes (L L^H)^{-1} (Hermitian, both triangles) into `out`.
+/// `col` is scratch of length `n`.
+pub fn invert(l: &[Complex], n: usize, out: &mut [Complex], col: &mut [Complex]) {
+    for j in 0..n {
+        col[..n].fill(Complex::new(0.0, 0.0));
+        col[j] = Complex::new(1.0, 0.0);
+        solve(l, n, &mut col[..n]);
+        for i in 0..n {
+            out[i * n + j] = col[i];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn solves_a_hermitian_system() {
+        let n = 3;
+        // A = B B^H + I for a fixed complex B.
+        let b = [
+            Complex::new(1.0, 0.5),
+            Complex::new(-0.3, 0.2),
+            Complex::new(0.0, 1.0),
+            Complex::new(0.7, -0.1),
+            Complex::new(2.0, 0.0),
+            Complex::new(0.1, 0.1),
+            Complex::new(-1.0, 0.4),
+            Complex::new(0.3, 0.3),
+            Complex::new(0.5, -0.8),
+        ];
+        let mut a = vec![Complex::new(0.0, 0.0); 9];
+        for i in 0..n {
+            for j in 0..n {
+                let mut s = if i == j {
+                    Complex::new(1.0, 0.0)
+                } else {
+                    Complex::new(0.0, 0.0)
+                };
+                for p in 0..n {
+                    s += b[i * n + p] * b[j * n + p].conj();
+                }
+                a[i * n + j] = s;
+            }
+        }
+        let orig = a.clone();
+        assert!(factor(&mut a, n));
+        let rhs = [
+            Complex::new(1.0, 0.0),
+            Complex::new(0.0, -2.0),
+            Complex::new(0.5, 0.5),
+        ];
+        let mut x = rhs;
+        solve(&a, n, &mut x);
+        for i in 0..n {
+            let mut s = Complex::new(0.0, 0.0);
+            for j in 0..n {
+                s += orig[i * n + j] * x[j];
+            }
+            assert!((s - rhs[i]).norm() < 1e-12);
+        }
+        let mut inv = vec![Complex::new(0.0, 0.0); 9];
+        let mut col = vec![Complex::new(0.0, 0.0); 3];
+        invert(&a, n, &mut inv, &mut col);
+        for i in 0..n {
+            for j in 0..n {
+                let mut s = Complex::new(0.0, 0.0);
+                for p in 0..n {
+                    s += orig[i * n + p] * inv[p * n + j];
+                }
+                let e = if i == j { 1.0 } else { 0.0 };
+                assert!((s - Complex::new(e, 0.0)).norm() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn refuses_indefinite_matrices() {
+        let mut a = vec![
+            Complex::new(1.0, 0.0),
+            Complex::new(2.0, 0.0),
+            Complex::new(2.0, 0.0),
+            Complex::new(1.0, 0.0),
+        ];
+        assert!(!factor(&mut a, 2));
+        let mut nan = vec![Complex::new(f64::NAN, 0.0)];
+        assert!(!factor(&mut nan, 1));
+    }
+}

@@ -1,0 +1,390 @@
+//! Configuration of the separator: framing, beamformer, adaptive canceller, adaptation control,
+//! post-filter and the lifecycle of the per-label streams.
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::dsp::FrameGeometry;
+
+/// An invalid separator configuration or layout: names the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct ConfigError {
+    /// Dotted path of the offending field, e.g. `rls.forgetting`.
+    pub field: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+impl ConfigError {
+    /// An error about `field`.
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// Which spatial filter each label gets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BeamformerKind {
+    /// Generalised sidelobe canceller (seed paper eq. 27-32): null-steering fixed beamformer,
+    /// blocking matrix of the target's steering vector, RLS interference canceller.
+    Gsc,
+    /// The GSC's fixed branch alone: unit response toward the label, nulls toward the others.
+    NullSteering,
+    /// MVDR with a noise-plus-interference covariance learned while the target is quiet.
+    Mvdr,
+    /// Delay-and-sum toward the label (the baseline).
+    DelayAndSum,
+}
+
+/// Which microphones a label's beamformer uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MicSelection {
+    /// All microphones of the layout as one array (the scene format's arrays share one clock).
+    All,
+    /// Only the array nearest to the label (re-chosen with hysteresis when the label moves).
+    NearestArray,
+}
+
+/// The time-frequency post-filter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PostFilterKind {
+    /// No post-filter: the beamformer output is the stream.
+    None,
+    /// Power-comparison mask (thesis section 3.5.2): 1 where the label's output power beats every
+    /// other label's by `mask_threshold`, else `gain_floor`.
+    Mask,
+    /// Soft mask P_i^a / (sum_j P_j^a + N_i^a) on smoothed powers, floored at `gain_floor`.
+    Wiener,
+}
+
+/// What the post-filter gain multiplies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PostFilterTarget {
+    /// The label's beamformer output.
+    BeamformerOutput,
+    /// The reference microphone's spectrum (keeps the reverberant image the truth is defined on).
+    ReferenceMic,
+}
+
+/// Recursive least squares interference canceller of the GSC.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct RlsConfig {
+    /// Forgetting factor per STFT frame while adapting fully (memory about 1 / (1 - forgetting)
+    /// frames).
+    pub forgetting: f64,
+    /// Start regularisation delta relative to the bin's input power: P0 = I / (delta * power).
+    pub init_regularisation: f64,
+    /// Leakage: a ridge term of this size relative to the bin's input power, kept in the
+    /// correlation estimate at all times against the drift of unexcited directions.
+    pub leakage: f64,
+    /// Bound on the canceller's norm relative to the fixed beamformer's (white-noise-gain
+    /// constraint); the weights are scaled back when they exceed it.
+    pub max_norm_ratio: f64,
+}
+
+impl Default for RlsConfig {
+    fn default() -> Self {
+        Self {
+            forgetting: 0.99,
+            init_regularisation: 1e-2,
+            leakage: 1e-3,
+            max_norm_ratio: 10.0,
+        }
+    }
+}
+
+/// MVDR beamformer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct MvdrConfig {
+    /// Forgetting factor per STFT frame of the noise-plus-interference covariance.
+    pub forgetting: f64,
+    /// Diagonal loading relative to the mean diagonal of the covariance.
+    pub loading: f64,
+}
+
+impl Default for MvdrConfig {
+    fn default() -> Self {
+        Self {
+            forgetting: 0.99,
+            loading: 1e-2,
+        }
+    }
+}
+
+/// When the adaptive parts (RLS canceller, MVDR covariance) learn: mainly while the target is
+/// quiet, so that the target is not cancelled.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct AdaptationConfig {
+    /// Target presence (speaking x activity, times the bin's dominance when `per_bin`) at or
+    /// below which the filter adapts at full speed.
+    pub presence_low: f64,
+    /// Target presence at or above which adaptation stops; between the two the step is weighted
+    /// and the forgetting slowed in proportion.
+    pub presence_high: f64,
+    /// Refine the presence per frequency bin with the share of the label's fixed-beamformer
+    /// power among all labels, so bins dominated by interferers are learnt while the target talks.
+    pub per_bin: bool,
+    /// Smoothing factor per frame of the fixed-beamformer powers used by `per_bin`.
+    pub power_smoothing: f64,
+}
+
+impl Default for AdaptationConfig {
+    fn default() -> Self {
+        Self {
+            presence_low: 0.1,
+            presence_high: 0.4,
+            per_bin: true,
+            power_smoothing: 0.5,
+        }
+    }
+}
+
+/// Time-frequency post-filter computed from all labels' beamformer outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct PostFilterConfig {
+    /// `none`, `mask` (power comparison, binary with floor) or `wiener` (soft).
+    pub kind: PostFilterKind,
+    /// `beamformer_output` or `reference_mic`: what the gain multiplies.
+    pub apply_to: PostFilterTarget,
+    /// Smallest gain, against musical noise (0.1 = -20 dB).
+    pub gain_floor: f64,
+    /// Smoothing factor per frame of the output powers (0 = no smoothing).
+    pub power_smoothing: f64,
+    /// Exponent a of the soft mask P_i^a / (sum_j P_j^a + N^a); larger is closer to binary.
+    pub exponent: f64,
+    /// `mask`: a label wins a bin when its power exceeds this factor times every other label's.
+    pub mask_threshold: f64,
+    /// `wiener`: include the stationary noise floor (minimum tracking) in the denominator.
+    pub noise_floor: bool,
+    /// Weight of the reference microphone's power that no label's output explains (untracked
+    /// talkers, noise) as one more competitor of every label; 0 ignores it.
+    pub untracked_weight: f64,
+    /// How much more power than the labels' outputs the reference microphone may carry before the
+    /// excess counts as untracked (their reverberation, which the beamformers remove).
+    pub untracked_margin: f64,
+    /// Rise of the tracked noise floor per second (dB/s) when the power stays above it.
+    pub noise_rise_db_per_s: f64,
+}
+
+impl Default for PostFilterConfig {
+    fn default() -> Self {
+        Self {
+            kind: PostFilterKind::Wiener,
+            apply_to: PostFilterTarget::ReferenceMic,
+            gain_floor: 0.05,
+            power_smoothing: 0.3,
+            exponent: 2.0,
+            mask_threshold: 1.0,
+            noise_floor: false,
+            untracked_weight: 0.0,
+            untracked_margin: 1.0,
+            noise_rise_db_per_s: 5.0,
+        }
+    }
+}
+
+/// Birth and death of a label's stream.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct LifecycleConfig {
+    /// Fade-in of a new label's stream (s).
+    pub fade_in_s: f64,
+    /// Time a label may be missing from the targets before its stream fades out (s); it keeps its
+    /// adaptive state and steers at its last position meanwhile.
+    pub grace_s: f64,
+    /// Fade-out of a disappeared label's stream (s), after which its state is dropped.
+    pub fade_out_s: f64,
+}
+
+impl Default for LifecycleConfig {
+    fn default() -> Self {
+        Self {
+            fade_in_s: 0.064,
+            grace_s: 0.256,
+            fade_out_s: 0.064,
+        }
+    }
+}
+
+/// Separator settings: one beamformer (plus post-filter) per tracked label.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct SeparatorConfig {
+    /// STFT frame (window and FFT) length in samples (1024 at 16 kHz; the paper uses 2048).
+    pub frame: usize,
+    /// STFT hop in samples (512; the paper uses 1024).
+    pub hop: usize,
+    /// `gsc` (default), `null_steering`, `mvdr` or `delay_and_sum` (baseline).
+    pub beamformer: BeamformerKind,
+    /// `all` layout microphones as one array, or the `nearest_array` to each label.
+    pub mics: MicSelection,
+    /// Lowest frequency processed (Hz); bins below it are output as silence.
+    pub min_frequency_hz: f64,
+    /// Highest frequency processed (Hz); `null` means up to Nyquist.
+    pub max_frequency_hz: Option<f64>,
+    /// Diagonal loading of the null-steering fixed beamformer relative to the mean diagonal of
+    /// D^H D; keeps close-by labels and low frequencies from blowing up the white-noise gain.
+    pub null_loading: f64,
+    /// Adaptive canceller of the GSC.
+    pub rls: RlsConfig,
+    /// MVDR beamformer.
+    pub mvdr: MvdrConfig,
+    /// Adaptation control of the RLS canceller and the MVDR covariance.
+    pub adaptation: AdaptationConfig,
+    /// Time-frequency post-filter.
+    pub post_filter: PostFilterConfig,
+    /// Stream birth, grace period and death.
+    pub lifecycle: LifecycleConfig,
+}
+
+impl Default for SeparatorConfig {
+    fn default() -> Self {
+        Self {
+            frame: 1024,
+            hop: 512,
+            beamformer: BeamformerKind::Gsc,
+            mics: MicSelection::All,
+            min_frequency_hz: 0.0,
+            max_frequency_hz: None,
+            null_loading: 1e-2,
+            rls: RlsConfig::default(),
+            mvdr: MvdrConfig::default(),
+            adaptation: AdaptationConfig::default(),
+            post_filter: PostFilterConfig::default(),
+            lifecycle: LifecycleConfig::default(),
+        }
+    }
+}
+
+fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(ConfigError::new(
+            field,
+            format!("must be a number in [{lo}, {hi}], got {v}"),
+        ))
+    }
+}
+
+impl SeparatorConfig {
+    /// The STFT geometry the separator expects.
+    pub fn frame_geometry(&self) -> FrameGeometry {
+        FrameGeometry {
+            frame: self.frame,
+            hop: self.hop,
+        }
+    }
+
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.frame_geometry()
+            .validate(true)
+            .map_err(|m| ConfigError::new("frame", m))?;
+        in_range("min_frequency_hz", self.min_frequency_hz, 0.0, 1e6)?;
+        if let Some(f) = self.max_frequency_hz {
+            in_range("max_frequency_hz", f, 0.0, 1e6)?;
+            if f <= self.min_frequency_hz {
+                return Err(ConfigError::new(
+                    "max_frequency_hz",
+                    "must be above min_frequency_hz",
+                ));
+            }
+        }
+        in_range("null_loading", self.null_loading, 1e-9, 1e3)?;
+        let r = &self.rls;
+        in_range("rls.forgetting", r.forgetting, 0.5, 1.0 - 1e-9)?;
+        in_range("rls.init_regularisation", r.init_regularisation, 1e-9, 1e6)?;
+        in_range("rls.leakage", r.leakage, 0.0, 1e3)?;
+        in_range("rls.max_norm_ratio", r.max_norm_ratio, 0.0, 1e6)?;
+        in_range("mvdr.forgetting", self.mvdr.forgetting, 0.5, 1.0 - 1e-9)?;
+        in_range("mvdr.loading", self.mvdr.loading, 1e-9, 1e3)?;
+        let a = &self.adaptation;
+        in_range("adaptation.presence_low", a.presence_low, 0.0, 1.0)?;
+        in_range("adaptation.presence_high", a.presence_high, 0.0, 1.0)?;
+        if a.presence_high <= a.presence_low {
+            return Err(ConfigError::new(
+                "adaptation.presence_high",
+                "must be above adaptation.presence_low",
+            ));
+        }
+        in_range("adaptation.power_smoothing", a.power_smoothing, 0.0, 0.999)?;
+        let p = &self.post_filter;
+        in_range("post_filter.gain_floor", p.gain_floor, 0.0, 1.0)?;
+        in_range("post_filter.power_smoothing", p.power_smoothing, 0.0, 0.999)?;
+        in_range("post_filter.exponent", p.exponent, 0.1, 10.0)?;
+        in_range("post_filter.mask_threshold", p.mask_threshold, 1e-3, 1e3)?;
+        in_range(
+            "post_filter.untracked_weight",
+            p.untracked_weight,
+            0.0,
+            100.0,
+        )?;
+        in_range(
+            "post_filter.untracked_margin",
+            p.untracked_margin,
+            1.0,
+            1000.0,
+        )?;
+        in_range(
+            "post_filter.noise_rise_db_per_s",
+            p.noise_rise_db_per_s,
+            0.01,
+            100.0,
+        )?;
+        let l = &self.lifecycle;
+        in_range("lifecycle.fade_in_s", l.fade_in_s, 0.0, 10.0)?;
+        in_range("lifecycle.grace_s", l.grace_s, 0.0, 60.0)?;
+        in_range("lifecycle.fade_out_s", l.fade_out_s, 0.0, 10.0)?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_round_trip() {
+        let c = SeparatorConfig::default();
+        c.validate().unwrap();
+        let s = serde_json::to_string(&c).unwrap();
+        let back: SeparatorConfig = serde_json::from_str(&s).unwrap();
+        assert_eq!(back, c);
+        let partial: SeparatorConfig =
+            serde_json::from_str(r#"{"frame": 2048, "hop": 1024, "beamformer": "mvdr"}"#).unwrap();
+        assert_eq!(partial.frame, 2048);
+        assert_eq!(partial.beamformer, BeamformerKind::Mvdr);
+        assert_eq!(partial.rls, RlsConfig::default());
+    }
+
+    #[test]
+    fn rejects_unknown_fields_and_names_bad_ones() {
+        assert!(serde_json::from_str::<SeparatorConfig>(r#"{"frmae": 1}"#).is_err());
+        assert!(serde_json::from_str::<SeparatorConfig>(r#"{"rls": {"lambda": 1}}"#).is_err());
+        let mut c = SeparatorConfig::default();
+        c.rls.forgetting = 1.0;
+        assert_eq!(c.validate().unwrap_err().field, "rls.forgetting");
+        let mut c = SeparatorConfig::default();
+        c.hop = 2048;
+        assert_eq!(c.validate().unwrap_err().field, "frame");
+        let mut c = SeparatorConfig::default();
+        c.adaptation.presence_high = 0.1;
+        assert_eq!(c.validate().unwrap_err().field, "adaptation.presence_high");
+        let mut c = SeparatorConfig::default();
+        c.max_frequency_hz = Some(f64::NAN);
+        assert_eq!(c.validate().unwrap_err().field, "max_frequency_hz");
+    }
+}

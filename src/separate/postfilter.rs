@@ -1,0 +1,233 @@
+//! Time-frequency post-filter: a gain per label and bin from all labels' beamformer outputs.
+//!
+//! Each label's beamformer is distortionless toward its own source at the reference microphone, so
+//! the outputs share one scale and their powers can be compared directly:
+//! * `mask` (thesis section 3.5.2 / algorithm A8): 1 where the label's smoothed power beats every
+//!   other label's by the threshold, else the floor;
+//! * `wiener`: G_i = xi_i^a / (sum_j xi_j^a + N_i^a) with xi the smoothed power above the label's
+//!   stationary noise floor N (minimum tracking with a slow rise), floored against musical noise.
+
+use super::config::{PostFilterConfig, PostFilterKind};
+use crate::dsp::Complex;
+
+/// Smoothing factor per frame of the power that the noise floor tracks.
+const NOISE_SMOOTHING: f64 = 0.9;
+/// The minimum of a smoothed periodogram sits below its mean; this factor undoes that bias.
+const NOISE_BIAS: f64 = 1.5;
+
+/// Per-bin state of one label's post-filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PostState {
+    /// Smoothed output power.
+    pub power: f64,
+    /// Slowly smoothed output power, tracked by the noise floor.
+    pub slow: f64,
+    /// Tracked noise floor (infinite until the first frame).
+    pub noise: f64,
+}
+
+impl Default for PostState {
+    fn default() -> Self {
+        Self {
+            power: 0.0,
+            slow: 0.0,
+            noise: f64::INFINITY,
+        }
+    }
+}
+
+/// The post-filter's constants.
+#[derive(Debug, Clone)]
+pub struct PostFilter {
+    kind: PostFilterKind,
+    floor: f64,
+    alpha: f64,
+    exponent: f64,
+    threshold: f64,
+    use_noise: bool,
+    untracked: f64,
+    margin: f64,
+    rise: f64,
+}
+
+impl PostFilter {
+    /// Constants from the configuration at a frame rate of `frames_per_s`.
+    pub fn new(cfg: &PostFilterConfig, frames_per_s: f64) -> Self {
+        Self {
+            kind: cfg.kind,
+            floor: cfg.gain_floor,
+            alpha: cfg.power_smoothing,
+            exponent: cfg.exponent,
+            threshold: cfg.mask_threshold,
+            use_noise: cfg.noise_floor,
+            untracked: cfg.untracked_weight,
+            margin: cfg.untracked_margin,
+            rise: 10f64.powf(cfg.noise_rise_db_per_s / 10.0 / frames_per_s),
+        }
+    }
+
+    /// Whether any gain is applied at all.
+    pub fn enabled(&self) -> bool {
+        self.kind != PostFilterKind::None
+    }
+
+    /// Updates every label's state at one bin from its beamformer output and writes its gain.
+    /// `reference` is the reference microphone's value and its smoothed power (state).
+    pub fn gains(
+        &self,
+        outputs: &[Complex],
+        state: &mut [PostState],
+        reference: (Complex, &mut f64),
+        gains: &mut [f64],
+    ) {
+        let n = outputs.len();
+        let mut explained = 0.0;
+        for (s, o) in state.iter_mut().zip(outputs) {
+            let p = o.norm_sqr();
+            s.power = self.alpha * s.power + (1.0 - self.alpha) * p;
+            s.slow = NOISE_SMOOTHING * s.slow + (1.0 - NOISE_SMOOTHING) * p;
+            s.noise = s.slow.min(s.noise * self.rise);
+            explained += s.power;
+        }
+        let (yref, pref) = reference;
+        *pref = self.alpha * *pref + (1.0 - self.alpha) * yref.norm_sqr();
+        // Power at the reference microphone that no label accounts for.
+        let residual = self.untracked * (*pref - self.margin * explained).max(0.0);
+        match self.kind {
+            PostFilterKind::None => gains[..n].fill(1.0),
+            PostFilterKind::Mask => {
+                for i in 0..n {
+                    let pi = state[i].power;
+                    let wins = (0..n).all(|j| j == i || pi >= self.threshold * state[j].power)
+                        && pi >= self.threshold * residual;
+                    gains[i] = if wins { 1.0 } else { self.floor };
+                }
+            }
+            PostFilterKind::Wiener => {
+                let a = self.exponent;
+                let pow = |x: f64| if a == 1.0 { x } else { x.powf(a) };
+                let mut total = pow(residual);
+                for (g, s) in gains.iter_mut().zip(state.iter()) {
+                    let xi = if self.use_noise {
+                        (s.power - NOISE_BIAS * s.noise).max(0.0)
+                    } else {
+                        s.power
+                    };
+                    *g = pow(xi);
+                    total += *g;
+                }
+                for (g, s) in gains.iter_mut().zip(state.iter()) {
+                    let noise = if self.use_noise {
+                        pow(NOISE_BIAS * s.noise)
+                    } else {
+                        0.0
+                    };
+                    let den = total + noise;
+                    let v = if den > 1e-300 { *g / den } else { 0.0 };
+                    *g = if v.is_finite() {
+                        v.max(self.floor)
+                    } else {
+                        1.0
+                    };
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pf(kind: PostFilterKind, smoothing: f64) -> PostFilter {
+        PostFilter::new(
+            &PostFilterConfig {
+                kind,
+                power_smoothing: smoothing,
+                gain_floor: 0.1,
+                exponent: 1.0,
+                noise_floor: true,
+                ..PostFilterConfig::default()
+            },
+            31.25,
+        )
+    }
+
+    #[test]
+    fn mask_keeps_the_loudest_label() {
+        let f = pf(PostFilterKind::Mask, 0.0);
+        let mut st = vec![PostState::default(); 3];
+        let mut g = vec![0.0; 3];
+        let out = [
+            Complex::new(1.0, 0.0),
+            Complex::new(0.0, 2.0),
+            Complex::new(0.5, 0.0),
+        ];
+        f.gains(&out, &mut st, (Complex::new(0.0, 0.0), &mut 0.0), &mut g);
+        assert_eq!(g, vec![0.1, 1.0, 0.1]);
+        let mut one = vec![PostState::default()];
+        f.gains(
+            &out[..1],
+            &mut one,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g[..1],
+        );
+        assert_eq!(g[0], 1.0);
+    }
+
+    #[test]
+    fn wiener_gains_follow_power_shares_and_floor() {
+        let mut f = pf(PostFilterKind::Wiener, 0.0);
+        f.use_noise = false;
+        let mut st = vec![PostState::default(); 2];
+        let mut g = vec![0.0; 2];
+        f.gains(
+            &[Complex::new(3.0, 0.0), Complex::new(1.0, 0.0)],
+            &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g,
+        );
+        assert!((g[0] - 0.9).abs() < 1e-12 && (g[1] - 0.1).abs() < 1e-12);
+        f.gains(
+            &[Complex::new(10.0, 0.0), Complex::new(0.1, 0.0)],
+            &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g,
+        );
+        assert_eq!(g[1], 0.1);
+        // Silence gives the floor, not NaN.
+        f.gains(
+            &[Complex::new(0.0, 0.0); 2],
+            &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g,
+        );
+        assert!(g.iter().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn noise_floor_suppresses_stationary_noise_and_passes_bursts() {
+        let f = pf(PostFilterKind::Wiener, 0.3);
+        let mut st = vec![PostState::default()];
+        let mut g = vec![0.0];
+        let mut s = 1u64;
+        let mut noise_gain = 0.0;
+        for n in 0..300 {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+            let ph = (s >> 11) as f64 / (1u64 << 53) as f64 * 6.283;
+            let burst = if n % 50 == 49 { 30.0 } else { 1.0 };
+            f.gains(
+                &[Complex::from_polar(burst, ph)],
+                &mut st,
+                (Complex::new(0.0, 0.0), &mut 0.0),
+                &mut g,
+            );
+            if n > 100 && n % 50 == 49 {
+                assert!(g[0] > 0.9, "burst gain {}", g[0]);
+            } else if n > 100 && n % 50 < 40 {
+                noise_gain += g[0];
+            }
+        }
+        assert!(noise_gain / 154.0 < 0.4, "{}", noise_gain / 154.0);
+    }
+}

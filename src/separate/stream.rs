@@ -1,0 +1,123 @@
+//! One label's stream in the bank: where it steers, its lifecycle and its per-bin adaptive state.
+
+use super::config::BeamformerKind;
+use super::lifecycle::Envelope;
+use super::postfilter::PostState;
+use super::rls;
+use super::steering::Steering;
+use crate::dsp::Complex;
+use crate::geometry::Vec3;
+use crate::label::Label;
+
+/// The state the bank keeps for one label.
+#[derive(Debug, Clone)]
+pub(super) struct Stream {
+    pub label: Label,
+    /// Last known position (or a point along the direction for direction-only targets).
+    pub position: Vec3,
+    pub direction_only: bool,
+    /// Probability that the target talks this frame (speaking x activity); 1 while missing.
+    pub presence: f64,
+    pub envelope: Envelope,
+    /// This frame's envelope gain.
+    pub gain: f64,
+    /// Index of the microphone group the beamformer runs on.
+    pub group: usize,
+    /// Smoothed broadband output power; ranks the null constraints when they must be capped.
+    pub power: f64,
+    /// Steering toward this label on every microphone group (only active groups are current).
+    pub steering: Vec<Steering>,
+    /// Adaptive state, `stride` values per bin: RLS V then P for the GSC, R for the MVDR.
+    pub adaptive: Vec<Complex>,
+    pub stride: usize,
+    /// The adaptive state must be (re)initialised before the next frame.
+    pub needs_reset: bool,
+    /// Smoothed fixed-beamformer power per bin (per-bin adaptation control).
+    pub fixed_power: Vec<f64>,
+    /// Post-filter state per bin.
+    pub post: Vec<PostState>,
+    /// Coordinate the RLS leakage visits next.
+    pub leak_index: usize,
+    /// Stream indices of the null-steering columns (itself first) when the nulls are capped.
+    pub constraints: Vec<usize>,
+    /// Effective filter of the last frame, bins x channels (only when recording).
+    pub filters: Vec<Complex>,
+}
+
+impl Stream {
+    /// A new stream for `label`, born silent.
+    pub fn new(label: Label, position: Vec3, direction_only: bool, groups: usize) -> Self {
+        Self {
+            label,
+            position,
+            direction_only,
+            presence: 1.0,
+            envelope: Envelope::born(),
+            gain: 0.0,
+            group: 0,
+            power: 0.0,
+            steering: vec![Steering::default(); groups],
+            adaptive: Vec::new(),
+            stride: 0,
+            needs_reset: true,
+            fixed_power: Vec::new(),
+            post: Vec::new(),
+            leak_index: 0,
+            constraints: Vec::new(),
+            filters: Vec::new(),
+        }
+    }
+
+    /// Sizes the per-bin state for `bins` bins and an `m`-microphone group; any change of shape
+    /// (or an explicit request) resets it.
+    pub fn fit(&mut self, kind: BeamformerKind, bins: usize, m: usize, groups: usize) {
+        let stride = match kind {
+            BeamformerKind::Gsc => (m - 1) + (m - 1) * (m - 1),
+            BeamformerKind::Mvdr => m * m,
+            BeamformerKind::NullSteering | BeamformerKind::DelayAndSum => 0,
+        };
+        if self.stride != stride || self.fixed_power.len() != bins {
+            self.stride = stride;
+            self.needs_reset = true;
+        }
+        self.steering.resize(groups, Steering::default());
+        if self.needs_reset {
+            self.adaptive.clear();
+            self.adaptive.resize(stride * bins, Complex::new(0.0, 0.0));
+            self.fixed_power.clear();
+            self.fixed_power.resize(bins, 0.0);
+            self.post.clear();
+            self.post.resize(bins, PostState::default());
+        }
+    }
+
+    /// Initialises the adaptive state of every bin from the input power per bin.
+    pub fn reset_adaptive(&mut self, kind: BeamformerKind, m: usize, delta: f64, psd: &[f64]) {
+        if self.stride == 0 {
+            self.needs_reset = false;
+            return;
+        }
+        for (k, &power) in psd.iter().enumerate() {
+            self.reset_bin(kind, m, k, delta, power);
+        }
+        self.needs_reset = false;
+    }
+
+    /// Initialises the adaptive state of bin `k`.
+    pub fn reset_bin(&mut self, kind: BeamformerKind, m: usize, k: usize, delta: f64, power: f64) {
+        let s = self.stride;
+        if s == 0 {
+            return;
+        }
+        let state = &mut self.adaptive[k * s..(k + 1) * s];
+        match kind {
+            BeamformerKind::Gsc => {
+                let l = m - 1;
+                let (v, p) = state.split_at_mut(l);
+                rls::reset(v, p, l, delta, power);
+            }
+            BeamformerKind::Mvdr => super::mvdr::reset(state, m, power),
+            BeamformerKind::NullSteering | BeamformerKind::DelayAndSum => {}
+        }
+    }
+}
