@@ -3,10 +3,21 @@
 
 mod audio_history;
 mod clock;
+pub mod config;
 pub mod config_doc;
 pub mod diarization;
+mod events;
 pub mod input;
+pub mod offline;
+mod sensor_queue;
+mod separation;
+mod session;
+pub mod stages;
 
 pub use audio_history::AudioHistory;
 pub use clock::StepClock;
+pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, PipelineConfig};
+pub use events::PipelineEvent;
 pub use input::InputError;
+pub use sensor_queue::SensorQueue;
+pub use session::{Pipeline, PipelineStats};

@@ -309,8 +309,8 @@ impl Pipeline {
         let end = match &self.audio {
             Some(a) => a.end(),
             None => {
-                let t = self.cameras.iter().chain(self.devices.iter()).map(SensorQueue::last_time);
-                let t_max = t.fold(0.0, f64::max);
+                let cams = self.cameras.iter().map(SensorQueue::last_time);
+                let t_max = cams.chain(self.devices.iter().map(SensorQueue::last_time)).fold(0.0, f64::max);
                 (t_max * self.clock.sample_rate as f64).ceil() as u64 + 1
             }
         };
