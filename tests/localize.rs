@@ -61,7 +61,9 @@ fn record(mics: &[Vec3], sources: &[(Vec3, Vec<f64>)], sensor_noise: f64) -> Vec
             let mut x = vec![0.0; n];
             inv.process(&mut acc, &mut x).unwrap();
             let e = noise(len, 500 + m as u64);
-            (0..len).map(|t| x[t] / n as f64 + sensor_noise * e[t]).collect()
+            (0..len)
+                .map(|t| x[t] / n as f64 + sensor_noise * e[t])
+                .collect()
         })
         .collect()
 }
@@ -174,10 +176,17 @@ mod scene_eval {
         pub active: usize,
         /// Of those, how many have a direction candidate within 5 degrees of azimuth.
         pub hits_5deg: usize,
+        /// Active pairs in which the talker's image at the reference microphone, in the
+        /// localiser's band, is within 10 dB of its mean over its active frames (audible there).
+        pub audible: usize,
+        /// Of those, how many have a direction candidate within 5 degrees of azimuth.
+        pub audible_hits_5deg: usize,
         /// Azimuth error (degrees) of the nearest candidate, per active pair with candidates.
         pub azimuth_errors: Vec<f64>,
         /// OSPA (c = 1 m, p = 1) of the position candidates per frame, against the active talkers.
         pub ospa: Vec<f64>,
+        /// Cardinality part of each frame's OSPA (c |m - n| / max(m, n)).
+        pub ospa_card: Vec<f64>,
         /// Same, only frames in which somebody talks.
         pub ospa_speech: Vec<f64>,
         /// Activity in frames with and without speech.
@@ -191,7 +200,11 @@ mod scene_eval {
     }
 
     fn mean(v: &[f64]) -> f64 {
-        if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
     }
 
     fn median(v: &[f64]) -> f64 {
@@ -201,22 +214,29 @@ mod scene_eval {
         let mut s = v.to_vec();
         s.sort_by(f64::total_cmp);
         let n = s.len();
-        if n % 2 == 1 { s[n / 2] } else { 0.5 * (s[n / 2 - 1] + s[n / 2]) }
+        if n % 2 == 1 {
+            s[n / 2]
+        } else {
+            0.5 * (s[n / 2 - 1] + s[n / 2])
+        }
     }
 
     impl Report {
         /// One line of figures.
         pub fn summary(&self) -> String {
             format!(
-                "frames {}, active talker-frames {}, within 5 deg {:.1} %, median azimuth error {:.2} deg \
-                 (over {} talker-frames with candidates), mean OSPA {:.3} m (speech frames {:.3} m), \
+                "frames {}, active talker-frames {}, within 5 deg {:.1} % (audible {} of them: {:.1} %), median azimuth error {:.2} deg \
+                 (over {} talker-frames with candidates), mean OSPA {:.3} m (cardinality {:.3}, speech frames {:.3} m), \
                  activity speech {:.2} / quiet {:.2} (quiet frames > 0.5: {:.1} %), doas/frame {:.2}, points/frame {:.2}",
                 self.frames,
                 self.active,
                 100.0 * self.hits_5deg as f64 / self.active.max(1) as f64,
+                self.audible,
+                100.0 * self.audible_hits_5deg as f64 / self.audible.max(1) as f64,
                 median(&self.azimuth_errors),
                 self.azimuth_errors.len(),
                 mean(&self.ospa),
+                mean(&self.ospa_card),
                 mean(&self.ospa_speech),
                 mean(&self.activity_speech),
                 mean(&self.activity_quiet),
@@ -285,6 +305,40 @@ mod scene_eval {
         let mut stft = StreamingStft::new(FrameGeometry { frame, hop: frame }, channels.len());
         let centre = layout.arrays[array].centroid();
         let mut report = Report::default();
+        // Each talker's image energy per frame, and its mean over the frames where it is active.
+        // In the localiser's band: what the localiser can possibly hear of the talker.
+        let mut band_stft = avsep::dsp::Stft::new(frame);
+        let mut bins = vec![avsep::dsp::Complex::new(0.0, 0.0); frame / 2 + 1];
+        let (k0, k1) = (
+            (cfg.band_low_hz * frame as f64 / fs).ceil() as usize,
+            (cfg.band_high_hz * frame as f64 / fs).floor() as usize,
+        );
+        let mut frame_energy = |sig: &[f32], start: usize| -> f64 {
+            let x: Vec<f64> = sig[start..start + frame]
+                .iter()
+                .map(|&v| f64::from(v))
+                .collect();
+            band_stft.forward(&x, &mut bins);
+            bins[k0..=k1].iter().map(|b| b.norm_sqr()).sum()
+        };
+        let levels: Vec<Option<f64>> = truth
+            .sources
+            .iter()
+            .map(|s| {
+                let sig = s.signal.as_ref()?;
+                let (mut sum, mut n) = (0.0, 0);
+                let mut start = 0;
+                while start + frame <= sig.len() {
+                    let (t0, t1) = (start as f64 / fs, (start + frame) as f64 / fs);
+                    if s.active_fraction(t0, t1) >= 0.5 {
+                        sum += frame_energy(sig, start);
+                        n += 1;
+                    }
+                    start += frame;
+                }
+                (n > 0).then(|| sum / n as f64)
+            })
+            .collect();
         let mut start = 0;
         while start + frame <= audio.frames() {
             let hop: Vec<&[f64]> = channels.iter().map(|c| &c[start..start + frame]).collect();
@@ -292,17 +346,30 @@ mod scene_eval {
             let obs: &ArrayObservation = all.iter().find(|o| o.array == array).expect("array");
             let (t0, t1) = (start as f64 / fs, (start + frame) as f64 / fs);
             let tm = 0.5 * (t0 + t1);
+            let is_active =
+                |s: &avsep::scene::TruthSource| s.exists_at(tm) && s.active_fraction(t0, t1) >= 0.5;
             let active: Vec<Vec3> = truth
                 .sources
                 .iter()
-                .filter(|s| s.exists_at(tm) && s.active_fraction(t0, t1) >= 0.5)
+                .filter(|s| is_active(s))
                 .filter_map(|s| s.position_at(tm))
+                .collect();
+            let audible: Vec<bool> = truth
+                .sources
+                .iter()
+                .zip(&levels)
+                .filter(|(s, _)| is_active(s) && s.position_at(tm).is_some())
+                .map(|(s, level)| match (s.signal.as_ref(), level) {
+                    (Some(sig), Some(l)) => frame_energy(sig, start) >= 0.1 * l,
+                    _ => true,
+                })
                 .collect();
             report.frames += 1;
             report.doas += obs.doas.len();
             report.points += obs.points.len();
-            for p in &active {
+            for (p, &loud) in active.iter().zip(&audible) {
                 report.active += 1;
+                report.audible += usize::from(loud);
                 let az = azimuth_of(&(p - centre));
                 let err = obs
                     .doas
@@ -314,11 +381,62 @@ mod scene_eval {
                 }
                 if err <= 5.0 {
                     report.hits_5deg += 1;
+                    report.audible_hits_5deg += usize::from(loud);
                 }
+            }
+            if std::env::var("AVSEP_EVAL_VERBOSE").is_ok() {
+                let pts: Vec<String> = obs
+                    .points
+                    .iter()
+                    .map(|p| {
+                        format!(
+                            "({:.1},{:.1},{:.1})@{:.2}",
+                            p.position.x, p.position.y, p.position.z, p.power
+                        )
+                    })
+                    .collect();
+                let tp: Vec<String> = active
+                    .iter()
+                    .map(|p| format!("({:.1},{:.1},{:.1})", p.x, p.y, p.z))
+                    .collect();
+                eprintln!("   points {pts:?} truth {tp:?}");
+                let truth_az: Vec<String> = active
+                    .iter()
+                    .map(|p| {
+                        let d = p - centre;
+                        format!(
+                            "{:.0}/{:.0}",
+                            deg(azimuth_of(&d)),
+                            deg(d.z.atan2(d.x.hypot(d.y)))
+                        )
+                    })
+                    .collect();
+                let found: Vec<String> = obs
+                    .doas
+                    .iter()
+                    .map(|d| {
+                        format!(
+                            "{:.0}/{:.0}@{:.2}",
+                            deg(d.azimuth),
+                            deg(d.elevation),
+                            d.power
+                        )
+                    })
+                    .collect();
+                eprintln!(
+                    "t {tm:5.2} act {:.2} truth {truth_az:?} found {found:?}",
+                    obs.activity
+                );
             }
             let points: Vec<Vec3> = obs.points.iter().map(|p| p.position).collect();
             let d = ospa(&points, &active, 1.0);
             report.ospa.push(d);
+            let n = points.len().max(active.len());
+            report.ospa_card.push(if n == 0 {
+                0.0
+            } else {
+                points.len().abs_diff(active.len()) as f64 / n as f64
+            });
             if active.is_empty() {
                 report.activity_quiet.push(obs.activity);
             } else {
@@ -342,6 +460,13 @@ mod scene_eval {
     }
 }
 
+/// The default configuration with the overrides in `AVSEP_LOCALIZE_CONFIG` (JSON), for tuning.
+fn config_from_env() -> LocalizerConfig {
+    std::env::var("AVSEP_LOCALIZE_CONFIG")
+        .map(|j| serde_json::from_str(&j).expect("valid localiser config JSON"))
+        .unwrap_or_default()
+}
+
 /// The scene folder named by `var`, if set (scenes are generated, never committed).
 fn scene_from_env(var: &str) -> Option<avsep::scene::Scene> {
     let dir = std::env::var(var).ok()?;
@@ -355,7 +480,7 @@ fn uca8_scene_azimuths() {
         eprintln!("AVSEP_UCA8_SCENE not set");
         return;
     };
-    let report = scene_eval::evaluate(&scene, &LocalizerConfig::default(), 0);
+    let report = scene_eval::evaluate(&scene, &config_from_env(), 0);
     eprintln!("uca8: {}", report.summary());
 }
 
@@ -366,6 +491,6 @@ fn paper_linear6_scene_ospa() {
         eprintln!("AVSEP_LINEAR6_SCENE not set");
         return;
     };
-    let report = scene_eval::evaluate(&scene, &LocalizerConfig::default(), 0);
+    let report = scene_eval::evaluate(&scene, &config_from_env(), 0);
     eprintln!("paper-linear6: {}", report.summary());
 }

@@ -60,6 +60,14 @@ pub struct LocalizerConfig {
     pub band_low_hz: f64,
     /// Upper edge (Hz) of the band used for GCC/SRP (at most half the sample rate).
     pub band_high_hz: f64,
+    /// PHAT exponent beta: each bin is divided by |Y|^beta before the cross-correlation (1 =
+    /// classic PHAT; below 1 the bins where speech is strong weigh more than those between its
+    /// harmonics, which noise and reverberation fill).
+    pub phat_exponent: f64,
+    /// Bins are weighted by P / (P + noise_weight * N), P the bin's power and N its noise floor
+    /// (minimum over `activity.noise_window_frames` frames), so bins the sources do not reach
+    /// count less; 0 weighs all bins alike (plain PHAT).
+    pub noise_weight: f64,
     /// GCC lags are tabulated this many times finer than one sample (band-limited interpolation).
     pub interpolation: usize,
     /// Most candidates reported per array and frame (for each search).
@@ -82,6 +90,8 @@ impl Default for LocalizerConfig {
             frame: 2048,
             band_low_hz: 1000.0,
             band_high_hz: 4000.0,
+            phat_exponent: 1.0,
+            noise_weight: 0.0,
             interpolation: 10,
             max_candidates: 3,
             search: SearchMode::Both,
@@ -133,6 +143,13 @@ pub struct PositionConfig {
     /// Later searches of the same frame draw no points within this distance (metres) of an
     /// accepted candidate.
     pub exclusion_radius_m: f64,
+    /// Where the SRP is flat along a ridge (range of a small array, the cone of a linear one),
+    /// the final ascent trades this many null standard deviations of SRP (see
+    /// `peaks.prominence_sigmas`) per half box diagonal, squared, of distance from the box centre
+    /// and of range away from the box's mean range from the array, so the candidate is the most
+    /// central of the equally good points rather than wherever noise put the maximum. 0 keeps
+    /// the plain SRP maximum.
+    pub centre_pull: f64,
 }
 
 impl Default for PositionConfig {
@@ -145,6 +162,7 @@ impl Default for PositionConfig {
             default_half_size_m: 3.0,
             min_range_m: 0.3,
             exclusion_radius_m: 0.3,
+            centre_pull: 2.0,
         }
     }
 }
@@ -258,6 +276,16 @@ impl LocalizerConfig {
             "the band must span at least 8 frequency bins",
         )?;
         check(
+            finite_in(self.phat_exponent, 0.0, 1.0),
+            "phat_exponent",
+            "must be in [0, 1]",
+        )?;
+        check(
+            finite_in(self.noise_weight, 0.0, 1e6),
+            "noise_weight",
+            "must be in [0, 1e6]",
+        )?;
+        check(
             (1..=64).contains(&self.interpolation),
             "interpolation",
             "must be in 1..=64",
@@ -325,6 +353,11 @@ impl LocalizerConfig {
             finite_in(p.exclusion_radius_m, 0.0, 100.0),
             "positions.exclusion_radius_m",
             "must be between 0 and 100 m",
+        )?;
+        check(
+            finite_in(p.centre_pull, 0.0, 1000.0),
+            "positions.centre_pull",
+            "must be between 0 and 1000",
         )
     }
 

@@ -11,6 +11,7 @@ mod config;
 mod directions;
 mod gcc;
 mod geodesic;
+mod noise_floor;
 mod region_contraction;
 #[cfg(test)]
 mod synth;
@@ -28,6 +29,7 @@ pub use config::{
 use activity::ActivityTracker;
 use directions::DirectionSearch;
 use gcc::GccBank;
+use noise_floor::BinNoiseFloor;
 use region_contraction::PositionSearch;
 
 use crate::dsp::MultiSpectrum;
@@ -84,8 +86,10 @@ struct ArrayState {
     bank: GccBank,
     searches: Option<Searches>,
     activity: ActivityTracker,
+    floor: BinNoiseFloor,
     tdoas: Vec<f64>,
     found: Vec<Vec3>,
+    powers: Vec<f64>,
 }
 
 /// The localiser stage: one state per array, no I/O, no threads, no clocks.
@@ -171,6 +175,7 @@ impl Localizer {
             self.cfg.frame,
             self.band,
             self.cfg.interpolation,
+            self.cfg.phat_exponent,
             self.sample_rate,
             c,
         );
@@ -200,7 +205,9 @@ impl Localizer {
             index,
             channels: array.channels.clone(),
             tdoas: vec![0.0; bank.len()],
+            floor: BinNoiseFloor::new(bank.bin_power.len(), self.cfg.activity.noise_window_frames),
             found: Vec::with_capacity(self.cfg.max_candidates),
+            powers: Vec::with_capacity(self.cfg.max_candidates),
             bank,
             searches,
             activity,
@@ -286,6 +293,10 @@ fn process_array(
         return;
     };
     let bank = &mut state.bank;
+    let floor = state.floor.update(&bank.bin_power);
+    if cfg.noise_weight > 0.0 {
+        bank.weight_bins(floor, cfg.noise_weight);
+    }
     bank.compute();
     let stats = searches.directions.grid_stats(bank);
     obs.activity = ActivityTracker::score(&cfg.activity, snr, Some(stats.max));
@@ -300,6 +311,7 @@ fn process_array(
         let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
         let mut map_mean = stats.mean;
         found.clear();
+        state.powers.clear();
         while found.len() < cfg.max_candidates {
             if !found.is_empty() {
                 map_mean = searches.directions.grid_stats(bank).mean;
@@ -307,17 +319,19 @@ fn process_array(
             let Some((d, p)) = searches.directions.search(bank, found, exclusion) else {
                 break;
             };
-            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
             if !accept.accepts(p, map_mean) {
                 break;
             }
             searches.directions.tdoas(&d, sps, &mut state.tdoas);
             bank.remove(&state.tdoas, removal);
             found.push(d);
+            state.powers.push(p);
+        }
+        for (d, &p) in found.iter().zip(&state.powers) {
             obs.doas.push(DirectionCandidate {
-                direction: d,
-                azimuth: azimuth_of(&d),
-                elevation: elevation_of(&d),
+                direction: *d,
+                azimuth: azimuth_of(d),
+                elevation: elevation_of(d),
                 power: p,
             });
         }
@@ -331,10 +345,10 @@ fn process_array(
             if !found.is_empty() {
                 map_mean = searches.directions.grid_stats(bank).mean;
             }
-            let Some((x, p)) = searches.positions.search(bank, found, rng) else {
+            let pull = cfg.positions.centre_pull * bank.null_std();
+            let Some((x, p)) = searches.positions.search(bank, found, rng, pull) else {
                 break;
             };
-            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
             if !accept.accepts(p, map_mean) {
                 break;
             }

@@ -39,7 +39,7 @@ fn gcc_peaks_at_tau_a_minus_tau_b() {
         let sig = synth::white(8192, 3);
         let x = synth::render(&array.mics, &[(src, &sig)], FS, C, None, 0.0, 1);
         let spectra = synth::spectra_at(&x, 2048, 2048);
-        let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+        let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, 1.0, FS, C);
         bank.whiten(&spectra);
         bank.compute();
         let p = bank.pairs[0];
@@ -76,7 +76,7 @@ fn interpolated_gcc_matches_the_exact_band_sum() {
     );
     let spectra = synth::spectra_at(&x, 1024, 2048);
     let band = (128, 320);
-    let mut bank = gcc::GccBank::new(&array, 2048, band, 10, FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, band, 10, 1.0, FS, C);
     bank.whiten(&spectra);
     bank.compute();
     let white = |ch: usize| -> Vec<crate::dsp::Complex> {
@@ -110,7 +110,7 @@ fn removing_a_source_keeps_the_other_pairs_peak() {
     let (g1, g2) = (synth::white(8192, 40), synth::white(8192, 41));
     let weak: Vec<f64> = g2.iter().map(|v| v * 0.7).collect();
     let x = synth::render(&array.mics, &[(s1, &g1), (s2, &weak)], FS, C, None, 0.0, 2);
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, 1.0, FS, C);
     bank.whiten(&synth::spectra_at(&x, 2048, 2048));
     bank.compute();
     let p = bank.pairs[0];
@@ -160,7 +160,7 @@ fn sliding_max_matches_brute_force() {
         0.3,
         4,
     );
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, 1.0, FS, C);
     bank.whiten(&synth::spectra_at(&x, 0, 2048));
     bank.compute();
     let len = bank.table.len();
@@ -588,7 +588,7 @@ fn config_errors_name_the_field() {
 fn planar_array_searches_the_half_space_facing_the_region() {
     let layout = uca_layout();
     let a = &layout.arrays[0];
-    let bank = gcc::GccBank::new(a, 2048, (128, 256), 10, FS, C);
+    let bank = gcc::GccBank::new(a, 2048, (128, 256), 10, 1.0, FS, C);
     let cfg = DirectionConfig::default();
     let up =
         directions::DirectionSearch::new(a, &bank, Some(synth::room_box()), &cfg.levels, 0.002, C);
@@ -609,4 +609,151 @@ fn planar_array_searches_the_half_space_facing_the_region() {
     for o in run(&mut loc, &x) {
         assert!(angle_between(&o.doas[0].direction, &(src - ceiling.centroid())) < 2.0);
     }
+}
+
+#[test]
+#[ignore = "debug"]
+fn debug_scan() {
+    let dir = std::env::var("SCENE").unwrap();
+    let t: f64 = std::env::var("T").unwrap().parse().unwrap();
+    let scene = crate::scene::Scene::load(std::path::Path::new(&dir)).unwrap();
+    let audio = scene.audio.as_ref().unwrap();
+    let chans: Vec<Vec<f64>> = (0..audio.channels)
+        .map(|c| audio.channel(c).iter().map(|&v| v as f64).collect())
+        .collect();
+    let start = ((t * 16000.0) as usize / 2048) * 2048;
+    let spectra = synth::spectra_at(&chans, start, 2048);
+    let cfg: LocalizerConfig = std::env::var("CFG")
+        .map(|j| serde_json::from_str(&j).unwrap())
+        .unwrap_or_default();
+    let mut loc = Localizer::new(&scene.layout, &cfg, 1).unwrap();
+    let obs = loc.process(&spectra);
+    eprintln!(
+        "{:?}",
+        obs[0]
+            .doas
+            .iter()
+            .map(|d| (deg(d.azimuth), deg(d.elevation), d.power))
+            .collect::<Vec<_>>()
+    );
+    let st = &mut loc.arrays[0];
+    st.bank.whiten(&spectra);
+    st.bank.compute();
+    let s = st.searches.as_ref().unwrap();
+    for el in [10.0, 20.0, 30.0, 45.0] {
+        let mut line = String::new();
+        for az in (-180..180).step_by(10) {
+            let d = direction_from_angles(rad(az as f64), rad(el));
+            line += &format!(
+                "{:4.0}",
+                100.0 * s.directions.srp_dir_pub(&st.bank.table, &d)
+            );
+        }
+        eprintln!("el {el:3}: {line}");
+    }
+}
+
+#[test]
+#[ignore = "debug"]
+fn debug_histogram() {
+    let dir = std::env::var("SCENE").unwrap();
+    let scene = crate::scene::Scene::load(std::path::Path::new(&dir)).unwrap();
+    let audio = scene.audio.as_ref().unwrap();
+    let chans: Vec<Vec<f64>> = (0..audio.channels)
+        .map(|c| audio.channel(c).iter().map(|&v| v as f64).collect())
+        .collect();
+    let array = &scene.layout.arrays[0];
+    let centre = array.centroid();
+    let sphere = geodesic::GeodesicSphere::new(3);
+    let keep: Vec<usize> = (0..sphere.points.len())
+        .filter(|&i| sphere.points[i].z >= 0.0)
+        .collect();
+    let dirs: Vec<Vec3> = keep.iter().map(|&i| sphere.points[i]).collect();
+    let mut map = vec![usize::MAX; sphere.points.len()];
+    for (j, &i) in keep.iter().enumerate() {
+        map[i] = j;
+    }
+    let nbrs: Vec<Vec<usize>> = keep
+        .iter()
+        .map(|&i| {
+            sphere.neighbours[i]
+                .iter()
+                .filter(|&&n| map[n] != usize::MAX)
+                .map(|&n| map[n])
+                .collect()
+        })
+        .collect();
+    let truth = scene.truth.as_ref().unwrap();
+    let nsel: usize = std::env::var("NSEL")
+        .map(|v| v.parse().unwrap())
+        .unwrap_or(128);
+    let (mut active, mut hits) = (0, 0);
+    let mut errs = Vec::new();
+    let mut start = 0;
+    while start + 2048 <= chans[0].len() {
+        let spectra = synth::spectra_at(&chans, start, 2048);
+        let (k0, k1) = (128usize, 512usize);
+        let mut power: Vec<(usize, f64)> = (k0..=k1)
+            .map(|k| (k, (0..8).map(|m| spectra.at(m, k).norm_sqr()).sum()))
+            .collect();
+        power.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut hist = vec![0.0; dirs.len()];
+        for &(k, _) in power.iter().take(nsel) {
+            let w: Vec<crate::dsp::Complex> = (0..8)
+                .map(|m| {
+                    let y = spectra.at(m, k);
+                    y / y.norm()
+                })
+                .collect();
+            let omega = 2.0 * std::f64::consts::PI * k as f64 * 16000.0 / 2048.0;
+            let mut best = (0, f64::MIN);
+            for (i, d) in dirs.iter().enumerate() {
+                let mut y = crate::dsp::Complex::new(0.0, 0.0);
+                for m in 0..8 {
+                    let lead = (array.mics[m] - centre).dot(d) / 343.0;
+                    y += w[m] * crate::dsp::Complex::from_polar(1.0, -omega * lead);
+                }
+                if y.norm_sqr() > best.1 {
+                    best = (i, y.norm_sqr());
+                }
+            }
+            hist[best.0] += best.1 / 64.0;
+        }
+        let smooth: Vec<f64> = (0..dirs.len())
+            .map(|i| hist[i] + 0.5 * nbrs[i].iter().map(|&n| hist[n]).sum::<f64>())
+            .collect();
+        let mut peaks: Vec<usize> = (0..dirs.len())
+            .filter(|&i| nbrs[i].iter().all(|&n| smooth[i] >= smooth[n]))
+            .collect();
+        peaks.sort_by(|&a, &b| smooth[b].total_cmp(&smooth[a]));
+        peaks.truncate(3);
+        let (t0, t1) = (start as f64 / 16000.0, (start + 2048) as f64 / 16000.0);
+        let tm = 0.5 * (t0 + t1);
+        for s in &truth.sources {
+            if !(s.exists_at(tm) && s.active_fraction(t0, t1) >= 0.5) {
+                continue;
+            }
+            let az = azimuth_of(&(s.position_at(tm).unwrap() - centre));
+            active += 1;
+            let e = peaks
+                .iter()
+                .map(|&p| deg(angle_diff(azimuth_of(&dirs[p]), az).abs()))
+                .fold(f64::INFINITY, f64::min);
+            if e <= 5.0 {
+                hits += 1;
+            }
+            if e.is_finite() {
+                errs.push(e);
+            }
+        }
+        start += 2048;
+    }
+    errs.sort_by(f64::total_cmp);
+    eprintln!(
+        "histogram peaks: {} of {} within 5 deg ({:.1} %), median {:.2}",
+        hits,
+        active,
+        100.0 * hits as f64 / active as f64,
+        errs[errs.len() / 2]
+    );
 }
