@@ -181,6 +181,10 @@ mod scene_eval {
         pub audible: usize,
         /// Of those, how many have a direction candidate within 5 degrees of azimuth.
         pub audible_hits_5deg: usize,
+        /// Frames with an active talker, counting only the talker loudest in the band.
+        pub dominant: usize,
+        /// Of those, how many have a direction candidate within 5 degrees of azimuth.
+        pub dominant_hits_5deg: usize,
         /// Azimuth error (degrees) of the nearest candidate, per active pair with candidates.
         pub azimuth_errors: Vec<f64>,
         /// OSPA (c = 1 m, p = 1) of the position candidates per frame, against the active talkers.
@@ -225,14 +229,15 @@ mod scene_eval {
         /// One line of figures.
         pub fn summary(&self) -> String {
             format!(
-                "frames {}, active talker-frames {}, within 5 deg {:.1} % (audible {} of them: {:.1} %), median azimuth error {:.2} deg \
+                "frames {}, active talker-frames {}, within 5 deg {:.1} % (audible {} of them: {:.1} %, loudest talker {:.1} %), median azimuth error {:.2} deg \
                  (over {} talker-frames with candidates), mean OSPA {:.3} m (cardinality {:.3}, speech frames {:.3} m), \
-                 activity speech {:.2} / quiet {:.2} (quiet frames > 0.5: {:.1} %), doas/frame {:.2}, points/frame {:.2}",
+                 activity speech {:.2} / quiet {:.2} (speech frames > 0.5: {:.1} %, quiet frames > 0.5: {:.1} %), doas/frame {:.2}, points/frame {:.2}",
                 self.frames,
                 self.active,
                 100.0 * self.hits_5deg as f64 / self.active.max(1) as f64,
                 self.audible,
                 100.0 * self.audible_hits_5deg as f64 / self.audible.max(1) as f64,
+                100.0 * self.dominant_hits_5deg as f64 / self.dominant.max(1) as f64,
                 median(&self.azimuth_errors),
                 self.azimuth_errors.len(),
                 mean(&self.ospa),
@@ -240,6 +245,8 @@ mod scene_eval {
                 mean(&self.ospa_speech),
                 mean(&self.activity_speech),
                 mean(&self.activity_quiet),
+                100.0 * self.activity_speech.iter().filter(|a| **a > 0.5).count() as f64
+                    / self.activity_speech.len().max(1) as f64,
                 100.0 * self.activity_quiet.iter().filter(|a| **a > 0.5).count() as f64
                     / self.activity_quiet.len().max(1) as f64,
                 self.doas as f64 / self.frames.max(1) as f64,
@@ -354,20 +361,25 @@ mod scene_eval {
                 .filter(|s| is_active(s))
                 .filter_map(|s| s.position_at(tm))
                 .collect();
-            let audible: Vec<bool> = truth
+            let energies: Vec<(f64, f64)> = truth
                 .sources
                 .iter()
                 .zip(&levels)
                 .filter(|(s, _)| is_active(s) && s.position_at(tm).is_some())
                 .map(|(s, level)| match (s.signal.as_ref(), level) {
-                    (Some(sig), Some(l)) => frame_energy(sig, start) >= 0.1 * l,
-                    _ => true,
+                    (Some(sig), Some(l)) => (frame_energy(sig, start), *l),
+                    _ => (1.0, 1.0),
                 })
                 .collect();
+            let audible: Vec<bool> = energies.iter().map(|(e, l)| *e >= 0.1 * l).collect();
+            let loudest = (0..energies.len()).max_by(|&a, &b| energies[a].0.total_cmp(&energies[b].0));
             report.frames += 1;
             report.doas += obs.doas.len();
             report.points += obs.points.len();
-            for (p, &loud) in active.iter().zip(&audible) {
+            if loudest.is_some() {
+                report.dominant += 1;
+            }
+            for (i, (p, &loud)) in active.iter().zip(&audible).enumerate() {
                 report.active += 1;
                 report.audible += usize::from(loud);
                 let az = azimuth_of(&(p - centre));
@@ -382,6 +394,7 @@ mod scene_eval {
                 if err <= 5.0 {
                     report.hits_5deg += 1;
                     report.audible_hits_5deg += usize::from(loud);
+                    report.dominant_hits_5deg += usize::from(loudest == Some(i));
                 }
             }
             if std::env::var("AVSEP_EVAL_VERBOSE").is_ok() {

@@ -91,7 +91,7 @@ impl Default for LocalizerConfig {
             band_low_hz: 1000.0,
             band_high_hz: 4000.0,
             phat_exponent: 1.0,
-            noise_weight: 0.0,
+            noise_weight: 2.0,
             interpolation: 10,
             max_candidates: 3,
             search: SearchMode::Both,
@@ -227,7 +227,7 @@ impl Default for ActivityConfig {
     fn default() -> Self {
         Self {
             noise_window_frames: 24,
-            snr_midpoint_db: 6.0,
+            snr_midpoint_db: 4.5,
             snr_scale_db: 2.0,
             coherence_midpoint: 0.1,
             coherence_scale: 0.03,

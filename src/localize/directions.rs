@@ -292,11 +292,6 @@ impl DirectionSearch {
         sum / np as f64
     }
 
-    #[cfg(test)]
-    pub fn srp_dir_pub(&self, table: &[f64], d: &Vec3) -> f64 {
-        self.srp_dir(table, d)
-    }
-
     /// SRP mean and maximum over the coarsest level.
     pub fn grid_stats(&self, bank: &GccBank) -> GridStats {
         let level = &self.levels[0];
