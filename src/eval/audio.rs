@@ -1,0 +1,414 @@
+//! Scores of the separated streams (`audio/<label>.wav`) against the true source images.
+//!
+//! Each true source with a signal is mapped to the label whose stream carries it: the label
+//! matched to it most often (in 3-D, else in azimuth) during its speaking steps, else the best
+//! SI-SDR assignment among the remaining labels. Everything is computed over the source's active
+//! samples (the union of its `active` intervals): SI-SDR and BSS Eval v3 SDR/SIR/SAR (references:
+//! every source's truth signal) of the stream and of the unprocessed reference microphone, and
+//! their differences (improvements).
+//!
+//! Stream continuity: the active samples are cut into blocks; a block is carried by the stream
+//! holding the most of the source's energy (largest `<y, s>^2 / |s|^2`) provided that stream
+//! correlates with the source at least `continuity_min_correlation`; the report gives each label's
+//! share of the blocks and how many labels carry at least `continuity_share` (the target is 1).
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::label::Label;
+use crate::scene::TruthSource;
+
+use super::EvalError;
+use super::assignment::{CostMatrix, assign};
+use super::bss_eval::{BssFigures, BssSystem};
+use super::config::EvalConfig;
+use super::sample_set::SampleSet;
+use super::si_sdr::si_sdr;
+use super::stats::mean_of;
+use super::tracks::{LabelShare, TracksReport};
+
+/// Separation scores.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AudioReport {
+    /// Taps of the BSS Eval distortion filter.
+    pub filter_taps: usize,
+    /// Per true source with a signal.
+    pub sources: Vec<SourceAudio>,
+    /// Means over the sources that have each figure.
+    pub mean: AudioMeans,
+}
+
+/// How a source was mapped to a stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MappedBy {
+    /// The label matched to it most often in 3-D during its speech.
+    Tracks,
+    /// The label matched to it most often in azimuth during its speech.
+    DirectionTracks,
+    /// The best SI-SDR assignment of the remaining labels.
+    SiSdr,
+}
+
+/// Separation scores of one source.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourceAudio {
+    /// Source id.
+    pub id: String,
+    /// The stream it was mapped to.
+    pub label: Option<Label>,
+    /// How.
+    pub mapped_by: Option<MappedBy>,
+    /// Active (scored) time (s).
+    pub active_s: f64,
+    /// SI-SDR of the stream (dB).
+    pub si_sdr_db: Option<f64>,
+    /// SI-SDR of the reference microphone (dB).
+    pub si_sdr_mixture_db: Option<f64>,
+    /// Stream minus reference microphone (dB).
+    pub si_sdr_improvement_db: Option<f64>,
+    /// BSS Eval v3 figures of the stream.
+    pub bss: Option<BssFigures>,
+    /// BSS Eval v3 figures of the reference microphone.
+    pub bss_mixture: Option<BssFigures>,
+    /// Stream minus reference microphone.
+    pub bss_improvement: Option<BssFigures>,
+    /// How its active time splits across streams.
+    pub continuity: StreamContinuity,
+}
+
+/// How a source's active blocks split across the streams.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct StreamContinuity {
+    /// Blocks of active samples.
+    pub blocks: usize,
+    /// Share of the blocks carried by each label, largest first.
+    pub shares: Vec<LabelShare>,
+    /// Share of the blocks no stream carries.
+    pub unassigned_share: f64,
+    /// Labels with at least `continuity_share` of the blocks.
+    pub stream_labels: usize,
+}
+
+/// Means over sources.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct AudioMeans {
+    /// SI-SDR of the streams (dB).
+    pub si_sdr_db: Option<f64>,
+    /// SI-SDR of the reference microphone (dB).
+    pub si_sdr_mixture_db: Option<f64>,
+    /// SI-SDR improvement (dB).
+    pub si_sdr_improvement_db: Option<f64>,
+    /// BSS Eval v3 of the streams.
+    pub bss: Option<BssFigures>,
+    /// BSS Eval v3 of the reference microphone.
+    pub bss_mixture: Option<BssFigures>,
+    /// BSS Eval v3 improvement.
+    pub bss_improvement: Option<BssFigures>,
+    /// Mean number of labels carrying each source (the target is 1).
+    pub stream_labels: Option<f64>,
+}
+
+/// Inputs of the audio scores.
+pub struct AudioInputs<'a> {
+    /// Sample rate (Hz).
+    pub sample_rate: f64,
+    /// The true sources with a signal.
+    pub sources: Vec<&'a TruthSource>,
+    /// Separated streams by label.
+    pub streams: &'a BTreeMap<Label, Vec<f32>>,
+    /// The reference microphone of the scene audio, when the scene has audio.
+    pub mixture: Option<Vec<f32>>,
+    /// The tracking scores, used to map sources to labels.
+    pub tracks: Option<&'a TracksReport>,
+}
+
+fn to_f64(x: &[f32]) -> Vec<f64> {
+    x.iter().map(|&v| f64::from(v)).collect()
+}
+
+/// Scores the separated streams.
+pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport, EvalError> {
+    let refs: Vec<Vec<f64>> = inputs
+        .sources
+        .iter()
+        .map(|s| to_f64(s.signal.as_deref().unwrap_or(&[])))
+        .collect();
+    let len = refs.iter().map(Vec::len).max().unwrap_or(0);
+    let labels: Vec<Label> = inputs.streams.keys().copied().collect();
+    let mut streams = Vec::with_capacity(labels.len());
+    for (label, s) in inputs.streams {
+        if s.len() != len {
+            return Err(EvalError::Input(format!(
+                "audio/{label}.wav has {} samples but the scene audio has {len}: separated \
+                 streams must be exactly as long as audio.wav and sample-aligned with it",
+                s.len()
+            )));
+        }
+        streams.push(to_f64(s));
+    }
+    let mixture = inputs.mixture.as_deref().map(to_f64);
+    let sets: Vec<SampleSet> = inputs
+        .sources
+        .iter()
+        .map(|s| SampleSet::from_intervals(&s.active, inputs.sample_rate, len))
+        .collect();
+    let mapping = map_sources(inputs, &labels, &streams, &refs, &sets);
+    let ref_slices: Vec<&[f64]> = refs.iter().map(Vec::as_slice).collect();
+    let block = ((cfg.continuity_block_s * inputs.sample_rate).round() as usize).max(1);
+    let mut sources = Vec::new();
+    for (i, src) in inputs.sources.iter().enumerate() {
+        let set = &sets[i];
+        let (label, mapped_by) = match mapping[i] {
+            Some((j, how)) => (Some(j), Some(how)),
+            None => (None, None),
+        };
+        let est = label.map(|j| &streams[j]);
+        let system = BssSystem::new(&ref_slices, i, set, cfg.bss_filter_taps);
+        let score = |x: &[f64]| system.as_ref().map(|s| s.score(x));
+        let si = |x: &[f64]| (!set.is_empty()).then(|| si_sdr(x, &refs[i], set));
+        let si_est = est.and_then(|e| si(e));
+        let si_mix = mixture.as_deref().and_then(si);
+        let bss = est.and_then(|e| score(e));
+        let bss_mix = mixture.as_deref().and_then(score);
+        sources.push(SourceAudio {
+            id: src.id.clone(),
+            label: label.map(|j| labels[j]),
+            mapped_by,
+            active_s: set.len() as f64 / inputs.sample_rate,
+            si_sdr_db: si_est,
+            si_sdr_mixture_db: si_mix,
+            si_sdr_improvement_db: si_est.zip(si_mix).map(|(a, b)| a - b),
+            bss,
+            bss_mixture: bss_mix,
+            bss_improvement: bss.zip(bss_mix).map(|(a, b)| a.minus(&b)),
+            continuity: continuity(&refs[i], set, &labels, &streams, block, cfg),
+        });
+    }
+    let mean_bss = |f: fn(&SourceAudio) -> Option<BssFigures>| -> Option<BssFigures> {
+        let v: Vec<BssFigures> = sources.iter().filter_map(f).collect();
+        Some(BssFigures {
+            sdr_db: mean_of(v.iter().map(|b| Some(b.sdr_db)))?,
+            sir_db: mean_of(v.iter().map(|b| Some(b.sir_db)))?,
+            sar_db: mean_of(v.iter().map(|b| Some(b.sar_db)))?,
+        })
+    };
+    let mean = AudioMeans {
+        si_sdr_db: mean_of(sources.iter().map(|s| s.si_sdr_db)),
+        si_sdr_mixture_db: mean_of(sources.iter().map(|s| s.si_sdr_mixture_db)),
+        si_sdr_improvement_db: mean_of(sources.iter().map(|s| s.si_sdr_improvement_db)),
+        bss: mean_bss(|s| s.bss),
+        bss_mixture: mean_bss(|s| s.bss_mixture),
+        bss_improvement: mean_bss(|s| s.bss_improvement),
+        stream_labels: mean_of(
+            sources
+                .iter()
+                .filter(|s| s.continuity.blocks > 0)
+                .map(|s| Some(s.continuity.stream_labels as f64)),
+        ),
+    };
+    Ok(AudioReport {
+        filter_taps: cfg.bss_filter_taps,
+        sources,
+        mean,
+    })
+}
+
+/// For each source, the index of its stream and how it was chosen.
+fn map_sources(
+    inputs: &AudioInputs,
+    labels: &[Label],
+    streams: &[Vec<f64>],
+    refs: &[Vec<f64>],
+    sets: &[SampleSet],
+) -> Vec<Option<(usize, MappedBy)>> {
+    let index_of = |l: &Label| labels.iter().position(|x| x == l);
+    let mut mapping: Vec<Option<(usize, MappedBy)>> = inputs
+        .sources
+        .iter()
+        .map(|s| {
+            let t = inputs.tracks?.all.sources.iter().find(|x| x.id == s.id)?;
+            let pick = |shares: &[LabelShare]| shares.iter().find_map(|l| index_of(&l.label));
+            pick(&t.active_labels)
+                .map(|j| (j, MappedBy::Tracks))
+                .or_else(|| {
+                    pick(&t.direction_active_labels).map(|j| (j, MappedBy::DirectionTracks))
+                })
+        })
+        .collect();
+    let free_sources: Vec<usize> = (0..mapping.len())
+        .filter(|&i| mapping[i].is_none() && !sets[i].is_empty())
+        .collect();
+    let free_labels: Vec<usize> = (0..labels.len())
+        .filter(|j| !mapping.iter().flatten().any(|(k, _)| k == j))
+        .collect();
+    let costs = CostMatrix::from_fn(free_sources.len(), free_labels.len(), |a, b| {
+        let i = free_sources[a];
+        -si_sdr(&streams[free_labels[b]], &refs[i], &sets[i])
+    });
+    for (a, b) in assign(&costs).pairs {
+        mapping[free_sources[a]] = Some((free_labels[b], MappedBy::SiSdr));
+    }
+    mapping
+}
+
+/// How the source's active blocks split across the streams.
+fn continuity(
+    reference: &[f64],
+    set: &SampleSet,
+    labels: &[Label],
+    streams: &[Vec<f64>],
+    block: usize,
+    cfg: &EvalConfig,
+) -> StreamContinuity {
+    let mut blocks: Vec<(usize, usize)> = Vec::new();
+    for &(a, b) in set.ranges() {
+        let mut s = a;
+        while s < b {
+            let e = (s + block).min(b);
+            // A remainder shorter than half a block is too short to judge on its own.
+            if e - s >= block.div_ceil(2) {
+                blocks.push((s, e));
+            }
+            s = e;
+        }
+    }
+    let mut counts: BTreeMap<usize, usize> = BTreeMap::new();
+    let mut unassigned = 0usize;
+    for &(a, b) in &blocks {
+        let s = &reference[a..b];
+        let ss: f64 = s.iter().map(|v| v * v).sum();
+        let best = streams
+            .iter()
+            .enumerate()
+            .map(|(j, y)| {
+                let y = &y[a..b];
+                let ys: f64 = y.iter().zip(s).map(|(p, q)| p * q).sum();
+                let yy: f64 = y.iter().map(|v| v * v).sum();
+                let rho = if ss > 0.0 && yy > 0.0 {
+                    ys / (ss * yy).sqrt()
+                } else {
+                    0.0
+                };
+                (j, ys * ys, rho)
+            })
+            .max_by(|x, y| x.1.total_cmp(&y.1));
+        match best {
+            Some((j, _, rho)) if rho >= cfg.continuity_min_correlation => {
+                *counts.entry(j).or_default() += 1;
+            }
+            _ => unassigned += 1,
+        }
+    }
+    let n = blocks.len().max(1) as f64;
+    let mut shares: Vec<LabelShare> = counts
+        .into_iter()
+        .map(|(j, c)| LabelShare {
+            label: labels[j],
+            share: c as f64 / n,
+        })
+        .collect();
+    shares.sort_by(|a, b| b.share.total_cmp(&a.share).then(a.label.cmp(&b.label)));
+    StreamContinuity {
+        blocks: blocks.len(),
+        stream_labels: shares
+            .iter()
+            .filter(|l| l.share >= cfg.continuity_share)
+            .count(),
+        shares,
+        unassigned_share: if blocks.is_empty() {
+            0.0
+        } else {
+            unassigned as f64 / n
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    fn noise(n: usize, seed: u64) -> Vec<f32> {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let d = Normal::new(0.0, 0.1).unwrap();
+        (0..n).map(|_| d.sample(&mut rng) as f32).collect()
+    }
+
+    fn source(id: &str, signal: Vec<f32>, active: Vec<(f64, f64)>) -> TruthSource {
+        TruthSource {
+            id: id.into(),
+            signal: Some(signal),
+            trajectory: vec![(0.0, Vec3::zeros())],
+            active,
+        }
+    }
+
+    #[test]
+    fn maps_by_si_sdr_and_scores_a_perfect_stream() {
+        let fs = 1000.0;
+        let n = 4000;
+        let a = source("a", noise(n, 1), vec![(0.0, 4.0)]);
+        // b speaks from 1 s to 3 s and is silent otherwise.
+        let mut nb = noise(n, 2);
+        nb[..1000].fill(0.0);
+        nb[3000..].fill(0.0);
+        let b = source("b", nb, vec![(1.0, 3.0)]);
+        let sa = a.signal.clone().unwrap();
+        let sb = b.signal.clone().unwrap();
+        let mix: Vec<f32> = sa.iter().zip(&sb).map(|(x, y)| x + y).collect();
+        let mut streams = BTreeMap::new();
+        // Label 3.0 is exactly b; 1.0 is a with half of b leaking in.
+        streams.insert(Label::new(3, 0), sb.clone());
+        streams.insert(
+            Label::new(1, 0),
+            sa.iter().zip(&sb).map(|(x, y)| x + 0.5 * y).collect(),
+        );
+        let cfg = EvalConfig {
+            bss_filter_taps: 16,
+            ..Default::default()
+        };
+        let inputs = AudioInputs {
+            sample_rate: fs,
+            sources: vec![&a, &b],
+            streams: &streams,
+            mixture: Some(mix),
+            tracks: None,
+        };
+        let r = score_audio(&inputs, &cfg).unwrap();
+        let (ra, rb) = (&r.sources[0], &r.sources[1]);
+        assert_eq!(ra.label, Some(Label::new(1, 0)));
+        assert_eq!(rb.label, Some(Label::new(3, 0)));
+        assert_eq!(rb.mapped_by, Some(MappedBy::SiSdr));
+        assert!(rb.si_sdr_db.unwrap() > 100.0);
+        assert!(rb.si_sdr_improvement_db.unwrap() > 90.0);
+        assert!(rb.bss.unwrap().sdr_db > 60.0);
+        // Source a over its 4 s: b is active half the time at half amplitude, so the leak
+        // carries 1/4 * 1/2 of a's energy (equal powers): SIR ~ 10 log10(8) = 9 dB.
+        let sir = ra.bss.unwrap().sir_db;
+        assert!((sir - 10.0 * 8f64.log10()).abs() < 0.6, "{sir}");
+        assert_eq!(rb.continuity.stream_labels, 1);
+        assert_eq!(rb.continuity.shares[0].label, Label::new(3, 0));
+        assert_eq!(rb.continuity.blocks, 4);
+        assert!(r.mean.si_sdr_improvement_db.is_some());
+    }
+
+    #[test]
+    fn rejects_streams_of_the_wrong_length() {
+        let a = source("a", noise(100, 1), vec![(0.0, 0.1)]);
+        let mut streams = BTreeMap::new();
+        streams.insert(Label::new(0, 0), vec![0.0f32; 99]);
+        let inputs = AudioInputs {
+            sample_rate: 1000.0,
+            sources: vec![&a],
+            streams: &streams,
+            mixture: None,
+            tracks: None,
+        };
+        let e = score_audio(&inputs, &EvalConfig::default()).unwrap_err();
+        assert!(e.to_string().contains("audio/0.0.wav"), "{e}");
+    }
+}
