@@ -107,11 +107,7 @@ impl Localizer {
     pub fn new(layout: &Layout, cfg: &LocalizerConfig, seed: u64) -> Result<Self, ConfigError> {
         cfg.validate(layout)?;
         let sample_rate = f64::from(layout.sample_rate);
-        let bin_hz = sample_rate / cfg.frame as f64;
-        let band = (
-            ((cfg.band_low_hz / bin_hz).ceil() as usize).max(1),
-            ((cfg.band_high_hz / bin_hz).floor() as usize).min(cfg.frame / 2 - 1),
-        );
+        let band = cfg.band_bins(layout.sample_rate);
         let mut localizer = Self {
             cfg: cfg.clone(),
             arrays: Vec::new(),
@@ -139,7 +135,7 @@ impl Localizer {
     pub fn set_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
         if f64::from(layout.sample_rate) != self.sample_rate {
             return Err(ConfigError::new(
-                "frame",
+                "sample_rate",
                 "the layout's sample rate changed; build a new localiser",
             ));
         }
@@ -227,6 +223,8 @@ impl Localizer {
                 "localiser: spectra do not match the frame size or the layout's channels"
             );
         }
+        let bin_hz = self.sample_rate / self.cfg.frame as f64;
+        let band_width_hz = (self.band.1 - self.band.0) as f64 * bin_hz;
         let mut out = Vec::with_capacity(self.arrays.len());
         for state in &mut self.arrays {
             let mut obs = ArrayObservation {
@@ -236,7 +234,14 @@ impl Localizer {
                 activity: 0.0,
             };
             if shape_ok {
-                process_array(state, spectra, &self.cfg, &mut self.rng, &mut obs);
+                process_array(
+                    state,
+                    spectra,
+                    &self.cfg,
+                    band_width_hz,
+                    &mut self.rng,
+                    &mut obs,
+                );
             }
             out.push(obs);
         }
@@ -280,6 +285,7 @@ fn process_array(
     state: &mut ArrayState,
     spectra: &MultiSpectrum,
     cfg: &LocalizerConfig,
+    band_width_hz: f64,
     rng: &mut ChaCha8Rng,
     obs: &mut ArrayObservation,
 ) {
@@ -303,7 +309,7 @@ fn process_array(
     if obs.activity < cfg.activity.min_activity {
         return;
     }
-    let removal = cfg.peaks.removal_width / (cfg.band_high_hz - cfg.band_low_hz);
+    let removal = cfg.peaks.removal_width / band_width_hz;
     let exclusion = cfg.peaks.exclusion_angle_deg.to_radians();
     let sps = bank.steps_per_second;
     let found = &mut state.found;

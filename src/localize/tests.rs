@@ -561,7 +561,18 @@ fn config_errors_name_the_field() {
             Ok(_) => panic!("accepted"),
         }
     };
-    assert_eq!(bad(&|c| c.band_high_hz = 9000.0), "band_high_hz");
+    assert_eq!(bad(&|c| c.band_high_hz = 900.0), "band_high_hz");
+    assert_eq!(
+        bad(&|c| {
+            c.band_low_hz = 7990.0;
+            c.band_high_hz = 20000.0;
+        }),
+        "band_low_hz"
+    );
+    // The default band reaches above 4 kHz: at 8 kHz sampling it is clamped, not refused.
+    let narrow = Layout::new(8000, 343.0, layout.arrays.clone(), vec![], layout.region).unwrap();
+    let loc = Localizer::new(&narrow, &LocalizerConfig::default(), 0).unwrap();
+    assert_eq!(loc.band, (256, 1023));
     assert_eq!(bad(&|c| c.frame = 1001), "frame");
     assert_eq!(
         bad(&|c| c.directions.levels = vec![4, 2]),
