@@ -1,6 +1,6 @@
 //! GCC-PHAT of every microphone pair of one array, tabulated on a fine lag grid.
 //!
-//! Per frame: the band bins of each channel are whitened (PHAT, Y / |Y|), each pair's cross-spectrum
+//! Per frame: the band bins of each channel are whitened (PHAT, Y / |Y|^beta), each pair's cross-spectrum
 //! W_a W_b^* is inverse transformed, the integer lags inside the physically possible range
 //! |tau| <= d_ab / c are kept and interpolated to `interpolation` points per sample with a
 //! Kaiser-windowed sinc (band-limited interpolation; the band stays well below Nyquist). With the
@@ -60,6 +60,14 @@ pub(crate) struct GccBank {
     band: (usize, usize),
     channels: Vec<usize>,
     white: Vec<Complex>,
+    /// |W| of every whitened bin (|Y|^(1 - beta)), channel-major like `white`.
+    mags: Vec<f64>,
+    /// Mean power over the channels of every band bin in the current frame.
+    pub bin_power: Vec<f64>,
+    /// PHAT exponent beta: bins are divided by |Y|^beta (1 = classic PHAT).
+    beta: f64,
+    /// Variance of the normalised SRP of incoherent signals in the current frame.
+    null_var: f64,
     cross: Vec<Complex>,
     time: Vec<f64>,
     lags: Vec<f64>,
@@ -69,7 +77,6 @@ pub(crate) struct GccBank {
     kernel: Vec<f64>,
     irfft: Arc<dyn ComplexToReal<f64>>,
     scratch: Vec<Complex>,
-    norm: f64,
     window_power: f64,
     frame: usize,
 }
@@ -124,6 +131,7 @@ impl GccBank {
         frame: usize,
         band: (usize, usize),
         interpolation: usize,
+        beta: f64,
         sample_rate: f64,
         speed_of_sound: f64,
     ) -> Self {
@@ -162,6 +170,10 @@ impl GccBank {
             band,
             channels: array.channels.clone(),
             white: vec![Complex::new(0.0, 0.0); nb * array.len()],
+            mags: vec![0.0; nb * array.len()],
+            bin_power: vec![0.0; nb],
+            beta,
+            null_var: 0.0,
             cross: vec![Complex::new(0.0, 0.0); frame / 2 + 1],
             time: vec![0.0; frame],
             lags: vec![0.0; 2 * lag_span + 1],
@@ -169,18 +181,16 @@ impl GccBank {
             kernel,
             irfft,
             scratch,
-            norm: 1.0 / (2.0 * nb as f64),
             window_power,
             frame,
         }
     }
 
-    /// Standard deviation of the normalised SRP (mean GCC over pairs) of incoherent signals:
-    /// each bin adds a cosine of uniform phase (variance 1/2), averaged over the band's bins and
-    /// over pairs, which are uncorrelated for independent microphone signals.
+    /// Standard deviation of the normalised SRP (mean GCC over pairs) that incoherent signals
+    /// with this frame's bin weights would give: each bin adds a cosine of uniform phase, and the
+    /// pairs are uncorrelated for independent microphone signals.
     pub fn null_std(&self) -> f64 {
-        let nb = (self.band.1 + 1 - self.band.0) as f64;
-        1.0 / (2.0 * nb * self.pairs.len().max(1) as f64).sqrt()
+        self.null_var.sqrt()
     }
 
     /// Number of pairs.
@@ -193,20 +203,42 @@ impl GccBank {
     pub fn whiten(&mut self, spectra: &MultiSpectrum) -> f64 {
         let nb = self.band.1 + 1 - self.band.0;
         let mut energy = 0.0;
+        self.bin_power.fill(0.0);
         for (m, &ch) in self.channels.iter().enumerate() {
             let bins = &spectra.channel(ch)[self.band.0..=self.band.1];
             let out = &mut self.white[m * nb..(m + 1) * nb];
-            for (o, y) in out.iter_mut().zip(bins) {
+            let mags = &mut self.mags[m * nb..(m + 1) * nb];
+            for (((o, w), y), bp) in out
+                .iter_mut()
+                .zip(mags.iter_mut())
+                .zip(bins)
+                .zip(self.bin_power.iter_mut())
+            {
                 // |Y|^2 without hypot: non-finite or overflowing bins fail the test and count as zero.
                 let p = y.re * y.re + y.im * y.im;
                 if p.is_finite() && p > 1e-60 {
-                    let mag = p.sqrt();
-                    *o = Complex::new(y.re / mag, y.im / mag);
+                    let scale = if self.beta == 1.0 {
+                        1.0 / p.sqrt()
+                    } else {
+                        p.powf(-0.5 * self.beta)
+                    };
+                    *o = y * scale;
+                    *w = p.sqrt() * scale;
                     energy += p;
+                    *bp += p;
                 } else {
                     *o = Complex::new(0.0, 0.0);
+                    *w = 0.0;
                 }
             }
+        }
+        let per_channel = 1.0 / self.channels.len().max(1) as f64;
+        for bp in &mut self.bin_power {
+            *bp = if bp.is_finite() {
+                *bp * per_channel
+            } else {
+                0.0
+            };
         }
         // One-sided bins of a Hann-windowed frame: sum |Y|^2 = (N/2) * sum w^2 * power per sample.
         let power =
@@ -214,17 +246,51 @@ impl GccBank {
         if power.is_finite() { power } else { f64::MAX }
     }
 
-    /// Computes every pair's fine GCC table from the whitened spectra.
+    /// Weights every whitened bin by P / (P + margin * N), with P its power and N its noise
+    /// floor: bins where noise (sensor noise, or a talker's spectral gaps) dominates weigh less,
+    /// without ever being dropped while the floor is still unknown.
+    pub fn weight_bins(&mut self, floor: &[f64], margin: f64) {
+        let nb = self.band.1 + 1 - self.band.0;
+        for (k, (p, n)) in self.bin_power.iter().zip(floor).enumerate() {
+            let w = if *p > 0.0 { p / (p + margin * n) } else { 0.0 };
+            for m in 0..self.channels.len() {
+                self.white[m * nb + k] *= w;
+                self.mags[m * nb + k] *= w;
+            }
+        }
+    }
+
+    /// Computes every pair's fine GCC table from the whitened spectra. Each pair's GCC is
+    /// normalised by the sum over bins of |W_a| |W_b|, so it lies in [-1, 1] and equals 1 for a
+    /// perfectly coherent pair whatever the exponent.
     pub fn compute(&mut self) {
         let nb = self.band.1 + 1 - self.band.0;
         let interp = self.interpolation as isize;
         let taps = 2 * SINC_TAPS;
         let lag_span = (self.lags.len() / 2) as isize;
         let n = self.frame as isize;
+        let mut null_var = 0.0;
         for p in &self.pairs {
             self.cross.fill(Complex::new(0.0, 0.0));
             let wa = &self.white[p.a * nb..(p.a + 1) * nb];
             let wb = &self.white[p.b * nb..(p.b + 1) * nb];
+            let (ma, mb) = (
+                &self.mags[p.a * nb..(p.a + 1) * nb],
+                &self.mags[p.b * nb..(p.b + 1) * nb],
+            );
+            let (mut s1, mut s2) = (0.0, 0.0);
+            for (x, y) in ma.iter().zip(mb) {
+                let w = x * y;
+                s1 += w;
+                s2 += w * w;
+            }
+            // Each bin adds a cosine of uniform phase (variance w^2 / 2) under incoherence.
+            let norm = if s1 > 0.0 {
+                null_var += s2 / (2.0 * s1 * s1);
+                1.0 / (2.0 * s1)
+            } else {
+                0.0
+            };
             for ((c, x), y) in self.cross[self.band.0..=self.band.1]
                 .iter_mut()
                 .zip(wa)
@@ -242,7 +308,7 @@ impl GccBank {
                     .process_with_scratch(&mut self.cross, &mut self.time, &mut self.scratch);
             for (i, l) in self.lags.iter_mut().enumerate() {
                 let lag = i as isize - lag_span;
-                *l = self.time[lag.rem_euclid(n) as usize] * self.norm;
+                *l = self.time[lag.rem_euclid(n) as usize] * norm;
             }
             let half = p.half as isize;
             let table = &mut self.table[p.offset..p.offset + 2 * p.half + 2];
@@ -261,6 +327,8 @@ impl GccBank {
             table[2 * p.half + 1] = table[2 * p.half];
         }
         self.pristine.copy_from_slice(&self.table);
+        let np = self.pairs.len().max(1) as f64;
+        self.null_var = null_var / (np * np);
     }
 
     /// Restores the tables as computed, undoing every removal.

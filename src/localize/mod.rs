@@ -11,6 +11,7 @@ mod config;
 mod directions;
 mod gcc;
 mod geodesic;
+mod noise_floor;
 mod region_contraction;
 #[cfg(test)]
 mod synth;
@@ -28,6 +29,7 @@ pub use config::{
 use activity::ActivityTracker;
 use directions::DirectionSearch;
 use gcc::GccBank;
+use noise_floor::BinNoiseFloor;
 use region_contraction::PositionSearch;
 
 use crate::dsp::MultiSpectrum;
@@ -84,8 +86,10 @@ struct ArrayState {
     bank: GccBank,
     searches: Option<Searches>,
     activity: ActivityTracker,
+    floor: BinNoiseFloor,
     tdoas: Vec<f64>,
     found: Vec<Vec3>,
+    powers: Vec<f64>,
 }
 
 /// The localiser stage: one state per array, no I/O, no threads, no clocks.
@@ -103,11 +107,7 @@ impl Localizer {
     pub fn new(layout: &Layout, cfg: &LocalizerConfig, seed: u64) -> Result<Self, ConfigError> {
         cfg.validate(layout)?;
         let sample_rate = f64::from(layout.sample_rate);
-        let bin_hz = sample_rate / cfg.frame as f64;
-        let band = (
-            ((cfg.band_low_hz / bin_hz).ceil() as usize).max(1),
-            ((cfg.band_high_hz / bin_hz).floor() as usize).min(cfg.frame / 2 - 1),
-        );
+        let band = cfg.band_bins(layout.sample_rate);
         let mut localizer = Self {
             cfg: cfg.clone(),
             arrays: Vec::new(),
@@ -135,7 +135,7 @@ impl Localizer {
     pub fn set_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
         if f64::from(layout.sample_rate) != self.sample_rate {
             return Err(ConfigError::new(
-                "frame",
+                "sample_rate",
                 "the layout's sample rate changed; build a new localiser",
             ));
         }
@@ -171,6 +171,7 @@ impl Localizer {
             self.cfg.frame,
             self.band,
             self.cfg.interpolation,
+            self.cfg.phat_exponent,
             self.sample_rate,
             c,
         );
@@ -200,7 +201,9 @@ impl Localizer {
             index,
             channels: array.channels.clone(),
             tdoas: vec![0.0; bank.len()],
+            floor: BinNoiseFloor::new(bank.bin_power.len(), self.cfg.activity.noise_window_frames),
             found: Vec::with_capacity(self.cfg.max_candidates),
+            powers: Vec::with_capacity(self.cfg.max_candidates),
             bank,
             searches,
             activity,
@@ -220,6 +223,8 @@ impl Localizer {
                 "localiser: spectra do not match the frame size or the layout's channels"
             );
         }
+        let bin_hz = self.sample_rate / self.cfg.frame as f64;
+        let band_width_hz = (self.band.1 - self.band.0) as f64 * bin_hz;
         let mut out = Vec::with_capacity(self.arrays.len());
         for state in &mut self.arrays {
             let mut obs = ArrayObservation {
@@ -229,7 +234,14 @@ impl Localizer {
                 activity: 0.0,
             };
             if shape_ok {
-                process_array(state, spectra, &self.cfg, &mut self.rng, &mut obs);
+                process_array(
+                    state,
+                    spectra,
+                    &self.cfg,
+                    band_width_hz,
+                    &mut self.rng,
+                    &mut obs,
+                );
             }
             out.push(obs);
         }
@@ -273,6 +285,7 @@ fn process_array(
     state: &mut ArrayState,
     spectra: &MultiSpectrum,
     cfg: &LocalizerConfig,
+    band_width_hz: f64,
     rng: &mut ChaCha8Rng,
     obs: &mut ArrayObservation,
 ) {
@@ -286,13 +299,17 @@ fn process_array(
         return;
     };
     let bank = &mut state.bank;
+    let floor = state.floor.update(&bank.bin_power);
+    if cfg.noise_weight > 0.0 {
+        bank.weight_bins(floor, cfg.noise_weight);
+    }
     bank.compute();
     let stats = searches.directions.grid_stats(bank);
     obs.activity = ActivityTracker::score(&cfg.activity, snr, Some(stats.max));
     if obs.activity < cfg.activity.min_activity {
         return;
     }
-    let removal = cfg.peaks.removal_width / (cfg.band_high_hz - cfg.band_low_hz);
+    let removal = cfg.peaks.removal_width / band_width_hz;
     let exclusion = cfg.peaks.exclusion_angle_deg.to_radians();
     let sps = bank.steps_per_second;
     let found = &mut state.found;
@@ -300,6 +317,7 @@ fn process_array(
         let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
         let mut map_mean = stats.mean;
         found.clear();
+        state.powers.clear();
         while found.len() < cfg.max_candidates {
             if !found.is_empty() {
                 map_mean = searches.directions.grid_stats(bank).mean;
@@ -307,17 +325,19 @@ fn process_array(
             let Some((d, p)) = searches.directions.search(bank, found, exclusion) else {
                 break;
             };
-            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
             if !accept.accepts(p, map_mean) {
                 break;
             }
             searches.directions.tdoas(&d, sps, &mut state.tdoas);
             bank.remove(&state.tdoas, removal);
             found.push(d);
+            state.powers.push(p);
+        }
+        for (d, &p) in found.iter().zip(&state.powers) {
             obs.doas.push(DirectionCandidate {
-                direction: d,
-                azimuth: azimuth_of(&d),
-                elevation: elevation_of(&d),
+                direction: *d,
+                azimuth: azimuth_of(d),
+                elevation: elevation_of(d),
                 power: p,
             });
         }
@@ -331,10 +351,10 @@ fn process_array(
             if !found.is_empty() {
                 map_mean = searches.directions.grid_stats(bank).mean;
             }
-            let Some((x, p)) = searches.positions.search(bank, found, rng) else {
+            let pull = cfg.positions.centre_pull * bank.null_std();
+            let Some((x, p)) = searches.positions.search(bank, found, rng, pull) else {
                 break;
             };
-            if std::env::var("LOC_DEBUG").is_ok() { eprintln!("cand p {p:.3} map_mean {map_mean:.3} first {:?}", accept.first); }
             if !accept.accepts(p, map_mean) {
                 break;
             }

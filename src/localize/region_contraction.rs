@@ -33,6 +33,11 @@ pub(crate) struct PositionSearch {
     exclusion: f64,
     dist: Vec<f64>,
     points: Vec<(Vec3, f64)>,
+    /// SRP traded per square metre of distance from the prior in the final ascent (this search).
+    pull: f64,
+    centroid: Vec3,
+    /// Mean distance from the array centroid to the searchable points of the box.
+    mean_range: f64,
 }
 
 impl PositionSearch {
@@ -65,7 +70,7 @@ impl PositionSearch {
                 }
             }
         }
-        Self {
+        let mut search = Self {
             bounds,
             half_space: half_space.map(|n| (n, centroid)),
             mics: array.mics.clone(),
@@ -83,6 +88,36 @@ impl PositionSearch {
             exclusion: cfg.exclusion_radius_m,
             dist: vec![0.0; array.len()],
             points: Vec::with_capacity(cfg.initial_points.max(cfg.kept_points)),
+            pull: 0.0,
+            centroid,
+            mean_range: 0.0,
+        };
+        search.mean_range = search.mean_range_of_box();
+        search
+    }
+
+    /// Mean distance from the array centroid over a regular 16^3 grid of the searchable box.
+    fn mean_range_of_box(&self) -> f64 {
+        const N: usize = 16;
+        let (mut sum, mut n) = (0.0, 0usize);
+        let size = self.bounds.size();
+        for i in 0..N {
+            for j in 0..N {
+                for k in 0..N {
+                    let f = |q: usize| (q as f64 + 0.5) / N as f64;
+                    let x =
+                        self.bounds.min + Vec3::new(size.x * f(i), size.y * f(j), size.z * f(k));
+                    if self.valid(&x, &[]) {
+                        sum += (x - self.centroid).norm();
+                        n += 1;
+                    }
+                }
+            }
+        }
+        if n == 0 {
+            (self.bounds.center() - self.centroid).norm()
+        } else {
+            sum / n as f64
         }
     }
 
@@ -130,6 +165,7 @@ impl PositionSearch {
         bank: &GccBank,
         accepted: &[Vec3],
         rng: &mut R,
+        pull: f64,
     ) -> Option<(Vec3, f64)> {
         let table = &bank.table;
         let bounds = self.bounds;
@@ -192,21 +228,31 @@ impl PositionSearch {
         let best = points.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1));
         let start_step = (0.25 * max_side(&bounding_box(&points))).clamp(0.02, 0.2);
         self.points = points;
-        best.map(|(x, v)| self.polish(table, x, v, start_step, accepted))
+        self.pull = pull / (0.25 * self.bounds.size().norm_squared());
+        best.map(|(x, _)| {
+            let v = self.objective(table, &x, accepted);
+            let (x, _) = self.polish(table, x, v, start_step, accepted);
+            (x, self.srp(table, &x))
+        })
     }
 
-    /// SRP at `x`, or minus infinity where no source may be.
-    fn srp_or_floor(&mut self, table: &[f64], x: &Vec3, accepted: &[Vec3]) -> f64 {
+    /// What the final ascent maximises: the SRP minus the pull towards the box centre and towards
+    /// the mean range of the box from the array, or minus infinity where no source may be.
+    fn objective(&mut self, table: &[f64], x: &Vec3, accepted: &[Vec3]) -> f64 {
         if self.bounds.contains(x) && self.valid(x, accepted) {
-            self.srp(table, x)
+            let range = (x - self.centroid).norm() - self.mean_range;
+            let centre = (x - self.bounds.center()).norm_squared();
+            self.srp(table, x) - self.pull * (centre + range * range)
         } else {
             f64::NEG_INFINITY
         }
     }
 
-    /// Nelder-Mead ascent from the contraction's best point. The random points leave it a
-    /// fraction of the final box away from the peak, which matters along the ridges where the
-    /// SRP is flat (range, cone surfaces); the simplex follows ridges that axis-wise steps cannot.
+    /// Nelder-Mead ascent of the objective from the contraction's best point. The random points
+    /// leave it a fraction of the final box away from the peak; along the ridges where the SRP is
+    /// flat (range, the cone of a linear array) the pull slides it to the most central place at
+    /// a typical range, instead of wherever noise put the maximum (often the box's far corners).
+    /// The simplex follows ridges that axis-wise steps cannot.
     fn polish(
         &mut self,
         table: &[f64],
@@ -222,7 +268,7 @@ impl PositionSearch {
             if !self.bounds.contains(&p) {
                 p[axis - 1] -= 2.0 * step;
             }
-            *vertex = (p, self.srp_or_floor(table, &p, accepted));
+            *vertex = (p, self.objective(table, &p, accepted));
         }
         let mut evaluations = 3;
         while evaluations < POLISH_MAX_EVALUATIONS {
@@ -237,11 +283,11 @@ impl PositionSearch {
             let centroid = (simplex[0].0 + simplex[1].0 + simplex[2].0) / 3.0;
             let worst = simplex[3];
             let reflected = centroid + (centroid - worst.0);
-            let vr = self.srp_or_floor(table, &reflected, accepted);
+            let vr = self.objective(table, &reflected, accepted);
             evaluations += 1;
             if vr > simplex[0].1 {
                 let expanded = centroid + (centroid - worst.0) * 2.0;
-                let ve = self.srp_or_floor(table, &expanded, accepted);
+                let ve = self.objective(table, &expanded, accepted);
                 evaluations += 1;
                 simplex[3] = if ve > vr {
                     (expanded, ve)
@@ -252,7 +298,7 @@ impl PositionSearch {
                 simplex[3] = (reflected, vr);
             } else {
                 let contracted = centroid + (worst.0 - centroid) * 0.5;
-                let vc = self.srp_or_floor(table, &contracted, accepted);
+                let vc = self.objective(table, &contracted, accepted);
                 evaluations += 1;
                 if vc > worst.1 {
                     simplex[3] = (contracted, vc);
@@ -260,7 +306,7 @@ impl PositionSearch {
                     let best = simplex[0].0;
                     for vertex in simplex.iter_mut().skip(1) {
                         let p = best + (vertex.0 - best) * 0.5;
-                        *vertex = (p, self.srp_or_floor(table, &p, accepted));
+                        *vertex = (p, self.objective(table, &p, accepted));
                     }
                     evaluations += 3;
                 }

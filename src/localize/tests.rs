@@ -39,7 +39,7 @@ fn gcc_peaks_at_tau_a_minus_tau_b() {
         let sig = synth::white(8192, 3);
         let x = synth::render(&array.mics, &[(src, &sig)], FS, C, None, 0.0, 1);
         let spectra = synth::spectra_at(&x, 2048, 2048);
-        let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+        let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, 1.0, FS, C);
         bank.whiten(&spectra);
         bank.compute();
         let p = bank.pairs[0];
@@ -76,7 +76,7 @@ fn interpolated_gcc_matches_the_exact_band_sum() {
     );
     let spectra = synth::spectra_at(&x, 1024, 2048);
     let band = (128, 320);
-    let mut bank = gcc::GccBank::new(&array, 2048, band, 10, FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, band, 10, 1.0, FS, C);
     bank.whiten(&spectra);
     bank.compute();
     let white = |ch: usize| -> Vec<crate::dsp::Complex> {
@@ -110,7 +110,7 @@ fn removing_a_source_keeps_the_other_pairs_peak() {
     let (g1, g2) = (synth::white(8192, 40), synth::white(8192, 41));
     let weak: Vec<f64> = g2.iter().map(|v| v * 0.7).collect();
     let x = synth::render(&array.mics, &[(s1, &g1), (s2, &weak)], FS, C, None, 0.0, 2);
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, 1.0, FS, C);
     bank.whiten(&synth::spectra_at(&x, 2048, 2048));
     bank.compute();
     let p = bank.pairs[0];
@@ -160,7 +160,7 @@ fn sliding_max_matches_brute_force() {
         0.3,
         4,
     );
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), 10, 1.0, FS, C);
     bank.whiten(&synth::spectra_at(&x, 0, 2048));
     bank.compute();
     let len = bank.table.len();
@@ -561,7 +561,18 @@ fn config_errors_name_the_field() {
             Ok(_) => panic!("accepted"),
         }
     };
-    assert_eq!(bad(&|c| c.band_high_hz = 9000.0), "band_high_hz");
+    assert_eq!(bad(&|c| c.band_high_hz = 900.0), "band_high_hz");
+    assert_eq!(
+        bad(&|c| {
+            c.band_low_hz = 7990.0;
+            c.band_high_hz = 20000.0;
+        }),
+        "band_low_hz"
+    );
+    // The default band reaches above 4 kHz: at 8 kHz sampling it is clamped, not refused.
+    let narrow = Layout::new(8000, 343.0, layout.arrays.clone(), vec![], layout.region).unwrap();
+    let loc = Localizer::new(&narrow, &LocalizerConfig::default(), 0).unwrap();
+    assert_eq!(loc.band, (256, 1023));
     assert_eq!(bad(&|c| c.frame = 1001), "frame");
     assert_eq!(
         bad(&|c| c.directions.levels = vec![4, 2]),
@@ -588,7 +599,7 @@ fn config_errors_name_the_field() {
 fn planar_array_searches_the_half_space_facing_the_region() {
     let layout = uca_layout();
     let a = &layout.arrays[0];
-    let bank = gcc::GccBank::new(a, 2048, (128, 256), 10, FS, C);
+    let bank = gcc::GccBank::new(a, 2048, (128, 256), 10, 1.0, FS, C);
     let cfg = DirectionConfig::default();
     let up =
         directions::DirectionSearch::new(a, &bank, Some(synth::room_box()), &cfg.levels, 0.002, C);
