@@ -25,6 +25,7 @@ mod occlusion;
 mod scan;
 mod sensor;
 mod slice_set;
+mod voice;
 
 use nalgebra::Matrix6;
 
@@ -32,7 +33,7 @@ pub use birth::BirthTerm;
 pub use config::{
     AudioDirectionConfig, AudioPositionConfig, BirthConfig, CameraConfig, ConfigError,
     EstimatorConfig, FilterKind, FixedBirth, GlmbConfig, GmphdConfig, MotionConfig, MotionKind,
-    TrackerConfig, TrackerKind, UkfConfig,
+    TrackerConfig, TrackerKind, UkfConfig, VoiceConfig,
 };
 pub use gaussian::Gaussian;
 pub use glmb::GlmbTracker;
@@ -124,9 +125,7 @@ pub fn build_tracker(
     let motion = MotionModel::<6>::from_config(&cfg.motion)?;
     let fixed = birth::fixed_births(&cfg.birth);
     Ok(match cfg.tracker {
-        TrackerKind::Glmb => Box::new(GlmbTracker::new(
-            cfg, motion, sensors, region, fixed, seed,
-        )?),
+        TrackerKind::Glmb => Box::new(GlmbTracker::new(cfg, motion, sensors, region, fixed, seed)?),
         TrackerKind::Gmphd => Box::new(GmphdTracker::new(cfg, motion, sensors, region, fixed)?),
     })
 }
