@@ -157,6 +157,10 @@ impl<const N: usize> GmphdTracker<N> {
     }
 
     /// Pruning and merging (Vo & Ma 2006, spec 002 3.4), labels and audio carried along.
+    ///
+    /// Unlike the thesis (which merges regardless and keeps the union of labels), components
+    /// whose dominant labels differ are not merged: the labelled GM-PHD of Panta, Clark & Vo
+    /// (2009) does the same, and it keeps identities through crossings.
     fn prune_and_merge(&mut self) {
         let cfg = &self.cfg.gmphd;
         let mut rest: Vec<Component<N>> = std::mem::take(&mut self.comps)
@@ -172,9 +176,16 @@ impl<const N: usize> GmphdTracker<N> {
                 continue;
             }
             let mj = rest[j].g.mean;
+            let leader = rest[j].dominant();
             let members: Vec<usize> = (j..rest.len())
                 .filter(|&i| {
+                    // Components of two different tracks never merge (a merged pair loses who is
+                    // who when two people cross); births merge into anything.
+                    let tag = rest[i].dominant();
+                    let compatible =
+                        i == j || tag == leader || matches!(tag, Some(Tag::Birth(_)) | None);
                     !used[i]
+                        && compatible
                         && inverses[i].as_ref().is_none_or(|ch| {
                             let d = rest[i].g.mean - mj;
                             d.dot(&ch.solve(&d)) <= cfg.merge_threshold
