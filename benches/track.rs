@@ -5,8 +5,8 @@ use std::hint::black_box;
 
 use avsep::geometry::{Aabb, Camera, Pixel, Vec3};
 use avsep::track::{
-    BirthTerm, FilterKind, Gaussian, GlmbTracker, Measurement, MotionModel, Scan, SensorModel,
-    StepInput, Tracker, TrackerConfig,
+    BirthTerm, Gaussian, GlmbTracker, Measurement, MotionModel, Scan, SensorModel, StepInput,
+    Tracker, TrackerConfig,
 };
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
@@ -72,9 +72,11 @@ fn vo_inputs(seed: u64) -> Vec<StepInput> {
 }
 
 fn vo_tracker() -> GlmbTracker<4> {
-    let mut cfg = TrackerConfig::default();
-    cfg.survival_probability = 0.99;
-    cfg.gate_probability = 0.9999999;
+    let mut cfg = TrackerConfig {
+        survival_probability: 0.99,
+        gate_probability: 0.9999999,
+        ..TrackerConfig::default()
+    };
     cfg.birth.from_measurements = false;
     cfg.estimator.hysteresis_steps = 0;
     cfg.glmb.requested_hypotheses = 1000;
@@ -89,16 +91,21 @@ fn vo_tracker() -> GlmbTracker<4> {
         clutter_rate: 30.0,
         clutter_density: 1.0 / (2000.0 * 2000.0),
     };
-    let births = [[0.1, 0.1], [400.0, -600.0], [-800.0, -200.0], [-200.0, 800.0]]
-        .iter()
-        .map(|p| BirthTerm {
-            density: Gaussian {
-                mean: SVector::<f64, 4>::new(p[0], p[1], 0.0, 0.0),
-                cov: SMatrix::<f64, 4, 4>::identity() * 100.0,
-            },
-            existence: 0.03,
-        })
-        .collect();
+    let births = [
+        [0.1, 0.1],
+        [400.0, -600.0],
+        [-800.0, -200.0],
+        [-200.0, 800.0],
+    ]
+    .iter()
+    .map(|p| BirthTerm {
+        density: Gaussian {
+            mean: SVector::<f64, 4>::new(p[0], p[1], 0.0, 0.0),
+            cov: SMatrix::<f64, 4, 4>::identity() * 100.0,
+        },
+        existence: 0.03,
+    })
+    .collect();
     GlmbTracker::new(&cfg, motion, vec![sensor], None, births, 1).unwrap()
 }
 
@@ -159,13 +166,14 @@ fn benches(c: &mut Criterion) {
     });
 
     let room = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
+    let cfg = TrackerConfig::default();
     let sensors = vec![
         SensorModel::CameraPoint {
             camera: Box::new(camera()),
             noise_std_px: 10.0,
             p_detect: 0.9,
             clutter_rate: 1.0,
-            filter: FilterKind::Ukf,
+            filter: cfg.camera.filter,
         },
         SensorModel::AudioPosition {
             noise_std_m: 0.1,
@@ -175,7 +183,6 @@ fn benches(c: &mut Criterion) {
             clutter_volume_m3: room.volume(),
         },
     ];
-    let cfg = TrackerConfig::default();
     let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
     let mut tracker = GlmbTracker::new(&cfg, motion, sensors, Some(room), vec![], 3).unwrap();
     let sources = [

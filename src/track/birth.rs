@@ -11,7 +11,7 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 
 use super::config::{BirthConfig, UkfConfig};
 use super::filter::{prepare, update};
-use super::gaussian::{Gaussian, chi_square_quantile};
+use super::gaussian::Gaussian;
 use super::motion::{position_of, state_of};
 use super::sensor::{Observation, Sensor, ray_interval};
 use crate::geometry::{Aabb, Camera, Pixel, Ray, Vec3, direction_from_angles};
@@ -84,7 +84,7 @@ pub(crate) fn births_from_measurements<const N: usize>(
     confirmed: &[Gaussian<N>],
 ) -> Vec<BirthTerm<N>> {
     let (eligible, total) = eligibility(ctx, scans, confirmed);
-    if !(total > 0.0) || ctx.cfg.max_per_step == 0 {
+    if total.is_nan() || total <= 0.0 || ctx.cfg.max_per_step == 0 {
         return Vec::new();
     }
     let mut free = eligible.clone();
@@ -160,7 +160,9 @@ fn select<const N: usize>(
     total: f64,
 ) -> Vec<BirthTerm<N>> {
     cands.sort_by(|a, b| a.rank.cmp(&b.rank).then(b.weight.total_cmp(&a.weight)));
-    let gate = chi_square_quantile(0.99, (N / 2).min(3));
+    // chi-square 99% quantiles for 1, 2 and 3 position axes.
+    const DUPLICATE_GATE: [f64; 3] = [6.635, 9.210, 11.345];
+    let gate = DUPLICATE_GATE[(N / 2).clamp(1, 3) - 1];
     let mut out: Vec<BirthTerm<N>> = Vec::new();
     for c in cands {
         if out.len() >= cfg.max_per_step {
@@ -169,8 +171,7 @@ fn select<const N: usize>(
         let duplicate = out.iter().any(|b| {
             let d = position_of(&c.density.mean) - position_of(&b.density.mean);
             let s = position_block(&c.density.cov) + position_block(&b.density.cov);
-            s.try_inverse()
-                .is_some_and(|si| d.dot(&(si * d)) < gate)
+            s.try_inverse().is_some_and(|si| d.dot(&(si * d)) < gate)
         });
         let existence = (c.weight / total * cfg.expected_births).min(cfg.max_existence);
         if !duplicate && existence > 1e-9 {
@@ -207,7 +208,11 @@ fn block_cov<const N: usize>(pos: &Matrix3<f64>, vel_std: f64) -> SMatrix<f64, N
 }
 
 /// A birth density at `p` with position covariance `pos_cov` (plus the birth spread).
-fn make_density<const N: usize>(p: &Vec3, pos_cov: &Matrix3<f64>, cfg: &BirthConfig) -> Gaussian<N> {
+fn make_density<const N: usize>(
+    p: &Vec3,
+    pos_cov: &Matrix3<f64>,
+    cfg: &BirthConfig,
+) -> Gaussian<N> {
     let cov = pos_cov + Matrix3::identity() * cfg.position_std_m.powi(2);
     Gaussian {
         mean: state_of(p, &Vec3::zeros()),
@@ -267,8 +272,7 @@ fn camera_births<const N: usize>(
             let mut density = make_density::<N>(&p, &pos, ctx.cfg);
             if let Some((sa, ja, _)) = partner {
                 let a = &scans[sa];
-                if let Some((g, _)) = update(&ctx.sensors[a.sensor], &density, &a.z[ja], ctx.ukf)
-                {
+                if let Some((g, _)) = update(&ctx.sensors[a.sensor], &density, &a.z[ja], ctx.ukf) {
                     density = g;
                 }
                 free[sa][ja] = false;
@@ -382,7 +386,11 @@ fn direction_birth<const N: usize>(
             let height = centre.map_or(cfg.default_height_m, |c| c.z);
             let o = Vec3::new(origin.x, origin.y, height);
             let vertical = ctx.region.map_or(0.5, |r| 0.25 * (r.max.z - r.min.z));
-            (o, direction_from_angles(z[0], 0.0), Some((Vec3::z(), vertical, false)))
+            (
+                o,
+                direction_from_angles(z[0], 0.0),
+                Some((Vec3::z(), vertical, false)),
+            )
         }
         Observation::Cone { origin, axis } => {
             // The cone's direction nearest to the region centre (or to the horizontal).
@@ -391,7 +399,9 @@ fn direction_birth<const N: usize>(
             let perp = if perp.norm() > 1e-9 {
                 perp.normalize()
             } else {
-                axis.cross(&Vec3::z()).try_normalize(1e-9).unwrap_or(Vec3::y())
+                axis.cross(&Vec3::z())
+                    .try_normalize(1e-9)
+                    .unwrap_or(Vec3::y())
             };
             let d = axis * z[0].cos() + perp * z[0].sin();
             let around = axis.cross(&d).try_normalize(1e-9).unwrap_or(Vec3::z());

@@ -25,11 +25,11 @@ pub fn condition<const N: usize>(p: &mut SMatrix<f64, N, N>) -> bool {
     }
     let sym = (*p + p.transpose()) * 0.5;
     *p = sym;
-    if p.cholesky().is_some() && (0..N).all(|i| p[(i, i)] > 0.0) {
-        return true;
-    }
     let scale = (0..N).map(|i| p[(i, i)].abs()).fold(0.0, f64::max);
     let floor = (scale * EIGEN_FLOOR_REL).max(EIGEN_FLOOR_ABS);
+    if cholesky_pivots_above(p, floor) {
+        return true;
+    }
     // Eigen-decomposition needs dynamic dimensions for generic N; this path is rare.
     let d = DMatrix::from_column_slice(N, N, p.as_slice());
     let eig = d.symmetric_eigen();
@@ -50,6 +50,27 @@ pub fn condition<const N: usize>(p: &mut SMatrix<f64, N, N>) -> bool {
     } else {
         false
     }
+}
+
+/// Whether every Cholesky pivot of symmetric `p` exceeds `floor` (then p is positive definite
+/// and not nearly singular). Written out because nalgebra's generic decomposition is several
+/// times slower for these small matrices, and this check runs for every covariance.
+fn cholesky_pivots_above<const N: usize>(p: &SMatrix<f64, N, N>, floor: f64) -> bool {
+    let a = p.as_slice();
+    let mut l = [[0.0f64; N]; N];
+    for j in 0..N {
+        let d = a[j * N + j] - l[j][..j].iter().map(|v| v * v).sum::<f64>();
+        if d.is_nan() || d <= floor {
+            return false;
+        }
+        let ljj = d.sqrt();
+        l[j][j] = ljj;
+        for i in j + 1..N {
+            let dot: f64 = l[i][..j].iter().zip(&l[j][..j]).map(|(x, y)| x * y).sum();
+            l[i][j] = (a[j * N + i] - dot) / ljj;
+        }
+    }
+    true
 }
 
 /// log(sum(exp(x))) computed without overflow; -inf for an empty or all -inf input.

@@ -20,30 +20,53 @@ const FREE: u32 = u32::MAX;
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Proposal {
     sensors: usize,
-    /// (start, len) of row (candidate, sensor) in `js`/`ws`; len 0 = not computed.
+    /// Start of each sensor's measurements in the sampler's table of taken measurements.
+    offsets: Vec<u32>,
+    /// Total number of measurements over the sensors.
+    measurements: usize,
+    /// (start, len) of row (candidate, sensor) in the entry arrays.
     spans: Vec<(u32, u32)>,
     /// log scale of each row: the weights in `ws` are exp(log w - scale).
     scales: Vec<f64>,
+    /// Sum of the scaled weights of each row.
+    totals: Vec<f64>,
+    /// Row entries: measurement index (0 = miss), scaled weight, slot in the taken table.
     js: Vec<u16>,
     ws: Vec<f64>,
+    slots: Vec<u32>,
     log_alive: Vec<f64>,
     log_dead: Vec<f64>,
+    /// Death probability of each candidate when no measurement is taken by another track.
+    p_dead_free: Vec<f64>,
 }
 
 impl Proposal {
-    /// Empties the proposal for `candidates` tracks and `sensors` sensors.
-    pub fn reset(&mut self, candidates: usize, sensors: usize) {
+    /// Empties the proposal for `candidates` tracks and sensors with `counts` measurements each.
+    pub fn reset(&mut self, candidates: usize, counts: &[usize]) {
+        let sensors = counts.len();
         self.sensors = sensors;
+        self.offsets.clear();
+        let mut total = 0u32;
+        for &n in counts {
+            self.offsets.push(total);
+            total += n as u32;
+        }
+        self.measurements = total as usize;
         self.spans.clear();
         self.spans.resize(candidates * sensors, (0, 0));
         self.scales.clear();
         self.scales.resize(candidates * sensors, 0.0);
+        self.totals.clear();
+        self.totals.resize(candidates * sensors, 0.0);
         self.js.clear();
         self.ws.clear();
+        self.slots.clear();
         self.log_alive.clear();
         self.log_alive.resize(candidates, 0.0);
         self.log_dead.clear();
         self.log_dead.resize(candidates, 0.0);
+        self.p_dead_free.clear();
+        self.p_dead_free.resize(candidates, 0.0);
     }
 
     /// Sets a candidate's survival (or birth) probability.
@@ -54,34 +77,59 @@ impl Proposal {
 
     /// Stores the row of (candidate, sensor): pairs (j, log beta(j)); j = 0 (miss) must be first.
     pub fn set_row(&mut self, cand: usize, sensor: usize, row: &[(u16, f64)]) {
-        let scale = row
-            .iter()
-            .map(|r| r.1)
-            .fold(f64::NEG_INFINITY, f64::max);
+        let scale = row.iter().map(|r| r.1).fold(f64::NEG_INFINITY, f64::max);
         let start = self.js.len() as u32;
+        let mut total = 0.0;
         for &(j, lw) in row {
+            let w = (lw - scale).exp();
             self.js.push(j);
-            self.ws.push((lw - scale).exp());
+            self.ws.push(w);
+            self.slots.push(if j == 0 {
+                FREE
+            } else {
+                self.offsets[sensor] + j as u32 - 1
+            });
+            total += w;
         }
         let k = cand * self.sensors + sensor;
         self.spans[k] = (start, row.len() as u32);
         self.scales[k] = scale;
+        self.totals[k] = total;
     }
 
-    fn row(&self, cand: usize, sensor: usize) -> (&[u16], &[f64], f64) {
-        let k = cand * self.sensors + sensor;
-        let (s, l) = self.spans[k];
-        let r = s as usize..(s + l) as usize;
-        (&self.js[r.clone()], &self.ws[r], self.scales[k])
+    /// log P_S (or log r_B) of a candidate.
+    pub fn log_alive(&self, cand: usize) -> f64 {
+        self.log_alive[cand]
     }
+
+    /// log(1 - P_S) (or log(1 - r_B)) of a candidate.
+    pub fn log_dead(&self, cand: usize) -> f64 {
+        self.log_dead[cand]
+    }
+
+    /// Completes a candidate once its existence and rows are set.
+    pub fn seal(&mut self, cand: usize) {
+        let mut log_alive = self.log_alive[cand];
+        for s in 0..self.sensors {
+            let k = cand * self.sensors + s;
+            log_alive += self.scales[k] + self.totals[k].ln();
+        }
+        self.p_dead_free[cand] = death_probability(log_alive, self.log_dead[cand]);
+    }
+}
+
+/// P(dead) = 1 / (1 + alive / dead) from log masses.
+fn death_probability(log_alive: f64, log_dead: f64) -> f64 {
+    1.0 / (1.0 + (log_alive - log_dead).exp())
 }
 
 /// Reusable buffers of the sampler.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Sampler {
     gamma: Vec<u16>,
+    previous: Vec<u16>,
+    /// Per measurement (all sensors): the local track holding it, or FREE.
     taken: Vec<u32>,
-    offsets: Vec<usize>,
     sums: Vec<f64>,
 }
 
@@ -89,13 +137,18 @@ impl Sampler {
     /// Draws `samples` association maps for the tracks `cands` (indices into the proposal) and
     /// inserts the distinct ones into `out`. A map holds `sensors + 1` entries per track, track
     /// major: first the status (0 = alive, [`DEAD`] = dead or not born), then per sensor 0 =
-    /// missed or j + 1 = measurement j (0 for a dead track). The first sample is the all-alive,
-    /// all-missed map.
+    /// missed or j + 1 = measurement j (0 for a dead track).
+    ///
+    /// The chain starts from (and stores) the map in which the first `births` tracks are not born
+    /// and the others are alive and missed. The reference code starts from all tracks alive,
+    /// births included: equally valid (only the start of the chain differs and every map is
+    /// weighted exactly), but it stores for every parent a child in which every birth exists
+    /// undetected, which is negligible and costly in the next step.
     pub fn sample<R: Rng>(
         &mut self,
         prop: &Proposal,
         cands: &[u32],
-        measurements: &[usize],
+        births: usize,
         samples: usize,
         rng: &mut R,
         out: &mut SliceSet<u16>,
@@ -104,72 +157,99 @@ impl Sampler {
         let p = cands.len();
         self.gamma.clear();
         self.gamma.resize(p * (c + 1), 0);
-        self.offsets.clear();
-        let mut total = 0;
-        for &m in measurements {
-            self.offsets.push(total);
-            total += m;
+        for i in 0..births.min(p) {
+            self.gamma[i * (c + 1)] = DEAD;
+        }
+        out.insert(&self.gamma);
+        if samples <= 1 {
+            return;
         }
         self.taken.clear();
-        self.taken.resize(total, FREE);
+        self.taken.resize(prop.measurements, FREE);
         self.sums.resize(c, 0.0);
-        out.insert(&self.gamma);
+        self.previous.clear();
+        self.previous.extend_from_slice(&self.gamma);
         for _ in 1..samples {
-            for i in 0..p {
-                self.resample_track(prop, cands, i, rng);
+            for (i, &cand) in cands.iter().enumerate() {
+                self.resample_track(prop, cand as usize, i, rng);
             }
-            out.insert(&self.gamma);
+            // A chain often stays put; only a changed map needs the set lookup.
+            if self.gamma != self.previous {
+                out.insert(&self.gamma);
+                self.previous.copy_from_slice(&self.gamma);
+            }
         }
     }
 
-    fn resample_track<R: Rng>(&mut self, prop: &Proposal, cands: &[u32], i: usize, rng: &mut R) {
+    fn resample_track<R: Rng>(&mut self, prop: &Proposal, cand: usize, i: usize, rng: &mut R) {
         let c = prop.sensors;
         let base = i * (c + 1);
-        let cand = cands[i] as usize;
+        let Self {
+            gamma, taken, sums, ..
+        } = self;
+        let g = &mut gamma[base..base + 1 + c];
         for s in 0..c {
-            let g = self.gamma[base + 1 + s];
-            if g != 0 {
-                self.taken[self.offsets[s] + g as usize - 1] = FREE;
+            if g[1 + s] != 0 {
+                taken[(prop.offsets[s] + g[1 + s] as u32 - 1) as usize] = FREE;
             }
         }
-        let mut log_alive = prop.log_alive[cand];
-        for s in 0..c {
-            let (js, ws, scale) = prop.row(cand, s);
-            let off = self.offsets[s];
-            let sum: f64 = js
-                .iter()
-                .zip(ws)
-                .filter(|(j, _)| **j == 0 || self.taken[off + **j as usize - 1] == FREE)
-                .map(|(_, w)| w)
-                .sum();
-            self.sums[s] = sum;
-            log_alive += scale + sum.ln();
+        let spans = &prop.spans[cand * c..(cand + 1) * c];
+        // Sum the allowed weights of each row; summed in the order of the row total, so an
+        // untouched row reproduces it exactly and the precomputed death probability applies.
+        let mut untouched = true;
+        for (s, &(start, len)) in spans.iter().enumerate() {
+            let (a, b) = (start as usize, (start + len) as usize);
+            let total = prop.totals[cand * c + s];
+            if len > 1 {
+                let mut sum = 0.0;
+                for (w, &slot) in prop.ws[a..b].iter().zip(&prop.slots[a..b]) {
+                    if slot == FREE || taken[slot as usize] == FREE {
+                        sum += w;
+                    }
+                }
+                untouched &= sum == total;
+                sums[s] = sum;
+            } else {
+                sums[s] = total;
+            }
         }
-        let p_dead = 1.0 / (1.0 + (log_alive - prop.log_dead[cand]).exp());
-        if rng.random::<f64>() < p_dead {
-            self.gamma[base] = DEAD;
-            self.gamma[base + 1..base + 1 + c].fill(0);
+        let p_dead = if untouched {
+            prop.p_dead_free[cand]
+        } else {
+            let mut alive = prop.log_alive[cand];
+            for (s, sum) in sums.iter().enumerate() {
+                alive += prop.scales[cand * c + s] + sum.ln();
+            }
+            death_probability(alive, prop.log_dead[cand])
+        };
+        let u0 = rng.random::<f64>();
+        if u0 < p_dead {
+            g.fill(0);
+            g[0] = DEAD;
             return;
         }
-        self.gamma[base] = 0;
-        for s in 0..c {
-            let (js, ws, _) = prop.row(cand, s);
-            let off = self.offsets[s];
-            let mut u = rng.random::<f64>() * self.sums[s];
+        g[0] = 0;
+        // The first sensor reuses the death draw, rescaled to a fresh uniform.
+        let mut fresh = Some((u0 - p_dead) / (1.0 - p_dead));
+        for (s, &(start, len)) in spans.iter().enumerate() {
+            let (a, b) = (start as usize, (start + len) as usize);
+            let u = fresh.take().unwrap_or_else(|| rng.random::<f64>());
+            let mut left = u * sums[s];
             let mut pick = 0u16;
-            for (j, w) in js.iter().zip(ws) {
-                if *j != 0 && self.taken[off + *j as usize - 1] != FREE {
+            for k in a..b {
+                let slot = prop.slots[k];
+                if slot != FREE && taken[slot as usize] != FREE {
                     continue;
                 }
-                pick = *j;
-                u -= w;
-                if u <= 0.0 {
+                pick = prop.js[k];
+                left -= prop.ws[k];
+                if left <= 0.0 {
                     break;
                 }
             }
-            self.gamma[base + 1 + s] = pick;
+            g[1 + s] = pick;
             if pick != 0 {
-                self.taken[off + pick as usize - 1] = i as u32;
+                taken[(prop.offsets[s] + pick as u32 - 1) as usize] = i as u32;
             }
         }
     }
@@ -186,16 +266,22 @@ mod tests {
     #[test]
     fn finds_the_best_joint_association_and_respects_exclusion() {
         let mut prop = Proposal::default();
-        prop.reset(2, 1);
+        prop.reset(2, &[2]);
         prop.set_existence(0, 0.99);
         prop.set_existence(1, 0.99);
         // Track 0 likes measurement 1 (j = 1), track 1 likes both but measurement 1 more.
-        prop.set_row(0, 0, &[(0, 0.05f64.ln()), (1, 50f64.ln()), (2, 0.1f64.ln())]);
+        prop.set_row(
+            0,
+            0,
+            &[(0, 0.05f64.ln()), (1, 50f64.ln()), (2, 0.1f64.ln())],
+        );
         prop.set_row(1, 0, &[(0, 0.05f64.ln()), (1, 40f64.ln()), (2, 30f64.ln())]);
+        prop.seal(0);
+        prop.seal(1);
         let mut out = SliceSet::default();
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let mut sampler = Sampler::default();
-        sampler.sample(&prop, &[0, 1], &[2], 200, &mut rng, &mut out);
+        sampler.sample(&prop, &[0, 1], 0, 200, &mut rng, &mut out);
         let samples: Vec<Vec<u16>> = (0..out.len()).map(|i| out.get(i).to_vec()).collect();
         assert!(samples.contains(&vec![0, 0, 0, 0]));
         assert!(samples.contains(&vec![0, 1, 0, 2]), "{samples:?}");
@@ -207,7 +293,7 @@ mod tests {
     #[test]
     fn unlikely_births_die_and_likely_ones_live() {
         let mut prop = Proposal::default();
-        prop.reset(2, 2);
+        prop.reset(2, &[1, 1]);
         // A birth with r_B = 0.001 and no support, and one with strong support in both sensors.
         prop.set_existence(0, 0.001);
         prop.set_existence(1, 0.01);
@@ -215,12 +301,14 @@ mod tests {
             prop.set_row(0, s, &[(0, 0.4f64.ln())]);
             prop.set_row(1, s, &[(0, 0.4f64.ln()), (1, 1000f64.ln())]);
         }
+        prop.seal(0);
+        prop.seal(1);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let mut counts = [0usize; 2];
         let mut sampler = Sampler::default();
         for _ in 0..200 {
             let mut out = SliceSet::default();
-            sampler.sample(&prop, &[0, 1], &[1, 1], 2, &mut rng, &mut out);
+            sampler.sample(&prop, &[0, 1], 2, 2, &mut rng, &mut out);
             let last = out.get(out.len() - 1).to_vec();
             counts[0] += (last[0] != DEAD) as usize;
             counts[1] += (last[3] == 0 && last[4] == 1 && last[5] == 1) as usize;

@@ -8,11 +8,13 @@ use rand_chacha::ChaCha8Rng;
 use super::birth::{BirthContext, BirthScan, BirthTerm, births_from_measurements};
 use super::config::{ConfigError, TrackerConfig};
 use super::estimator::Reporter;
+use super::filter::Transition;
 use super::gaussian::Gaussian;
 use super::joint_update::{Entry, JointUpdate, Posterior, StepModel};
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
 use super::sensor::{Sensor, SensorModel};
+use super::voice::VoiceModel;
 use super::{StepInput, TrackEstimate, Tracker, TrackerStats, covariance6};
 use crate::geometry::{Aabb, Vec3};
 use crate::label::Label;
@@ -226,8 +228,9 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
         births.append(&mut self.pending);
         let model = StepModel {
             k,
-            f,
-            q,
+            dt,
+            transition: Transition::new(f, q),
+            voice: VoiceModel::new(&self.cfg.voice),
             survival: self.cfg.survival_probability,
             sensors: &self.sensors,
             scans: &scans,

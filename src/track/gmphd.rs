@@ -14,7 +14,7 @@ use nalgebra::SVector;
 use super::birth::{BirthContext, BirthScan, BirthTerm, births_from_measurements};
 use super::config::{ConfigError, TrackerConfig};
 use super::estimator::Reporter;
-use super::filter::{predict, prepare};
+use super::filter::{Transition, prepare};
 use super::gaussian::Gaussian;
 use super::glmb::{clamp_region, compile_sensors};
 use super::hungarian::assign;
@@ -109,13 +109,17 @@ impl<const N: usize> GmphdTracker<N> {
         for c in &self.comps {
             let pd = sensor.p_detect_at(&c.g.mean, scan.activity);
             let prep = (pd > 0.0)
-                .then(|| prepare(sensor, &c.g, &self.cfg.ukf))
+                .then(|| {
+                    let p = prepare(sensor, &c.g, &self.cfg.ukf)?;
+                    let g = p.complete(sensor, &c.g)?;
+                    Some((p, g))
+                })
                 .flatten();
             let pd = if prep.is_some() { pd } else { 0.0 };
             let mut missed = c.clone();
             missed.w *= 1.0 - pd;
             out.push(missed);
-            let Some(p) = prep else { continue };
+            let Some((p, gain)) = prep else { continue };
             for (j, z) in scan.z.iter().enumerate() {
                 let nu = p.innovation(sensor, z);
                 let d2 = p.mahalanobis(&nu);
@@ -125,8 +129,8 @@ impl<const N: usize> GmphdTracker<N> {
                 let score = pd.ln() + c.w.ln() + p.log_likelihood(d2);
                 let mut d = c.clone();
                 d.g = Gaussian {
-                    mean: p.mean(&nu),
-                    cov: p.cov,
+                    mean: gain.mean(&c.g.mean, &nu),
+                    cov: gain.cov,
                 };
                 if sensor.audio {
                     d.audio = 1.0;
@@ -153,6 +157,10 @@ impl<const N: usize> GmphdTracker<N> {
     }
 
     /// Pruning and merging (Vo & Ma 2006, spec 002 3.4), labels and audio carried along.
+    ///
+    /// Unlike the thesis (which merges regardless and keeps the union of labels), components
+    /// whose dominant labels differ are not merged: the labelled GM-PHD of Panta, Clark & Vo
+    /// (2009) does the same, and it keeps identities through crossings.
     fn prune_and_merge(&mut self) {
         let cfg = &self.cfg.gmphd;
         let mut rest: Vec<Component<N>> = std::mem::take(&mut self.comps)
@@ -168,9 +176,16 @@ impl<const N: usize> GmphdTracker<N> {
                 continue;
             }
             let mj = rest[j].g.mean;
+            let leader = rest[j].dominant();
             let members: Vec<usize> = (j..rest.len())
                 .filter(|&i| {
+                    // Components of two different tracks never merge (a merged pair loses who is
+                    // who when two people cross); births merge into anything.
+                    let tag = rest[i].dominant();
+                    let compatible =
+                        i == j || tag == leader || matches!(tag, Some(Tag::Birth(_)) | None);
                     !used[i]
+                        && compatible
                         && inverses[i].as_ref().is_none_or(|ch| {
                             let d = rest[i].g.mean - mj;
                             d.dot(&ch.solve(&d)) <= cfg.merge_threshold
@@ -232,7 +247,11 @@ impl<const N: usize> GmphdTracker<N> {
                     .map(|(l, x)| {
                         let d = (position_of(&c.g.mean) - position_of(x)).norm();
                         let compatible = c.tags.iter().any(|t| t.0 == Tag::Label(*l));
-                        if compatible && d <= cfg.label_gate_m { d } else { big }
+                        if compatible && d <= cfg.label_gate_m {
+                            d
+                        } else {
+                            big
+                        }
                     })
                     .collect()
             })
@@ -297,10 +316,10 @@ impl<const N: usize> GmphdTracker<N> {
             }
         }
         for (i, c) in self.comps.iter_mut().enumerate() {
-            if !est.contains(&i) {
-                if let Some(t) = c.dominant() {
-                    c.tags = vec![(t, 1.0)];
-                }
+            if !est.contains(&i)
+                && let Some(t) = c.dominant()
+            {
+                c.tags = vec![(t, 1.0)];
             }
         }
         self.previous = current;
@@ -314,8 +333,9 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
         let scans = collect(input, &self.sensors, &mut self.stats);
         let (f, q) = self.motion.transition(dt);
         let ps = self.cfg.survival_probability;
+        let transition = Transition::new(f, q);
         for c in &mut self.comps {
-            if let Some(g) = predict(&c.g, &f, &q) {
+            if let Some(g) = transition.predict(&c.g) {
                 c.g = g;
             }
             c.w *= ps;
@@ -363,10 +383,10 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
         // 6.4); its strongest component still feeds the reporting hysteresis.
         let mut fallback: HashMap<Label, TrackEstimate> = HashMap::new();
         for c in &self.comps {
-            if let Some(Tag::Label(l)) = c.dominant() {
-                if fallback.get(&l).is_none_or(|e| e.existence < c.w.min(1.0)) {
-                    fallback.insert(l, estimate(c, l));
-                }
+            if let Some(Tag::Label(l)) = c.dominant()
+                && fallback.get(&l).is_none_or(|e| e.existence < c.w.min(1.0))
+            {
+                fallback.insert(l, estimate(c, l));
             }
         }
         let audio = scans.iter().any(|s| self.sensors[s.sensor].audio);
@@ -418,4 +438,3 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
         self.stats
     }
 }
-

@@ -10,7 +10,9 @@ pub(crate) fn assign(cost: &[Vec<f64>]) -> Vec<Option<usize>> {
     }
     if n > m {
         // Solve the transpose so that rows <= columns.
-        let t: Vec<Vec<f64>> = (0..m).map(|j| (0..n).map(|i| cost[i][j]).collect()).collect();
+        let t: Vec<Vec<f64>> = (0..m)
+            .map(|j| (0..n).map(|i| cost[i][j]).collect())
+            .collect();
         let cols = assign(&t);
         let mut out = vec![None; n];
         for (j, i) in cols.iter().enumerate() {
@@ -110,7 +112,9 @@ mod tests {
         }
         assert_eq!(total(&cost, &a), best);
         // More rows than columns: one row is left out.
-        let t: Vec<Vec<f64>> = (0..4).map(|j| (0..3).map(|i| cost[i][j]).collect()).collect();
+        let t: Vec<Vec<f64>> = (0..4)
+            .map(|j| (0..3).map(|i| cost[i][j]).collect())
+            .collect();
         let b = assign(&t);
         assert_eq!(b.iter().filter(|x| x.is_none()).count(), 1);
         assert_eq!(total(&t, &b), best);

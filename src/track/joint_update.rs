@@ -6,12 +6,12 @@
 //! updates live in one table keyed by (candidate track, measurement index per sensor), shared
 //! by all parents, so no update is computed twice; identical child hypotheses are merged.
 
-use nalgebra::{SMatrix, Vector3};
+use nalgebra::Vector3;
 use rand::Rng;
 
 use super::birth::BirthTerm;
 use super::config::{CameraConfig, GlmbConfig, UkfConfig};
-use super::filter::{Prepared, predict, prepare, update};
+use super::filter::{Gain, Prepared, Transition, prepare, update};
 use super::gaussian::{Gaussian, log_add, log_sum_exp};
 use super::gibbs::{DEAD, Proposal, Sampler};
 use super::motion::position_of;
@@ -19,6 +19,7 @@ use super::occlusion::occludes;
 use super::scan::SensorScan;
 use super::sensor::Sensor;
 use super::slice_set::SliceSet;
+use super::voice::{VoiceModel, audio_outcome};
 use crate::geometry::{Aabb, Vec3};
 use crate::label::Label;
 
@@ -29,6 +30,8 @@ pub(crate) struct Entry<const N: usize> {
     pub density: Gaussian<N>,
     /// Whether the last update associated an audio measurement.
     pub audio: bool,
+    /// Probability that the track is talking (the voice mode).
+    pub talking: f64,
     /// (scan, measurement) pairs used by the last update.
     pub assoc: Vec<(u16, u16)>,
 }
@@ -67,8 +70,9 @@ impl<const N: usize> Posterior<N> {
 /// Everything one joint update needs besides the prior.
 pub(crate) struct StepModel<'a, const N: usize> {
     pub k: u64,
-    pub f: SMatrix<f64, N, N>,
-    pub q: SMatrix<f64, N, N>,
+    pub dt: f64,
+    pub transition: Transition<N>,
+    pub voice: VoiceModel,
     pub survival: f64,
     pub sensors: &'a [Sensor<N>],
     pub scans: &'a [SensorScan],
@@ -80,10 +84,13 @@ pub(crate) struct StepModel<'a, const N: usize> {
     pub clamp: Option<Aabb>,
 }
 
+const NONE: u32 = u32::MAX;
+
 #[derive(Debug, Clone)]
 struct Candidate<const N: usize> {
     label: Label,
     pred: Gaussian<N>,
+    talking: f64,
     existence: f64,
     ready: bool,
 }
@@ -93,17 +100,31 @@ struct Candidate<const N: usize> {
 pub(crate) struct JointUpdate<const N: usize> {
     cands: Vec<Candidate<N>>,
     pd: Vec<f64>,
-    prepared: Vec<Option<Prepared<N>>>,
+    /// (P_D talking, P_D silent) of audio sensors per (candidate, scan).
+    audio_pd: Vec<(f64, f64)>,
+    /// (log(1 - P_D), log P_D - log kappa) per (candidate, scan), P_D marginal over the mode.
+    log_pd: Vec<(f64, f64)>,
+    /// Index into `preps` per (candidate, scan); NONE when the sensor cannot observe it.
+    prep_idx: Vec<u32>,
+    preps: Vec<Prepared<N>>,
+    /// Gain and posterior covariance per prepared update, computed on first use.
+    gains: Vec<Option<Gain<N>>>,
     proposal: Proposal,
     sampler: Sampler,
     samples: SliceSet<u16>,
     keys: SliceSet<u32>,
     children: SliceSet<u32>,
     child_logw: Vec<f64>,
-    new_entries: Vec<Entry<N>>,
+    new_entries: Vec<Option<Entry<N>>>,
     new_terms: Vec<f64>,
     local: Vec<u32>,
     gamma: Vec<u16>,
+    /// Per local track of the current parent: the last association row scored, with its entry
+    /// (NONE when dead) and log weight factor.
+    memo_rows: Vec<u16>,
+    memo_valid: Vec<bool>,
+    memo_ids: Vec<u32>,
+    memo_terms: Vec<f64>,
     key: Vec<u32>,
     ids: Vec<u32>,
     row: Vec<(u16, f64)>,
@@ -118,7 +139,6 @@ impl<const N: usize> JointUpdate<N> {
         rng: &mut R,
     ) -> Posterior<N> {
         self.start(prior, m);
-        let counts: Vec<usize> = m.scans.iter().map(|s| s.z.len()).collect();
         let half: Vec<f64> = prior.hyps.iter().map(|h| (0.5 * h.0).exp()).collect();
         let total: f64 = half.iter().sum();
         let mut budget: Vec<usize> = half
@@ -141,11 +161,18 @@ impl<const N: usize> JointUpdate<N> {
                 let c = self.local[i] as usize;
                 self.ensure(c, prior, m);
             }
+            let p = self.local.len();
+            self.memo_rows.clear();
+            self.memo_rows.resize(p * (m.scans.len() + 1), 0);
+            self.memo_valid.clear();
+            self.memo_valid.resize(p, false);
+            self.memo_ids.resize(p, NONE);
+            self.memo_terms.resize(p, 0.0);
             self.samples.clear();
             self.sampler.sample(
                 &self.proposal,
                 &self.local,
-                &counts,
+                births as usize,
                 t_h,
                 rng,
                 &mut self.samples,
@@ -166,6 +193,7 @@ impl<const N: usize> JointUpdate<N> {
             self.cands.push(Candidate {
                 label: Label::new(m.k, b as u32),
                 pred: birth.density.clone(),
+                talking: m.voice.initial(),
                 existence: birth.existence,
                 ready: false,
             });
@@ -174,6 +202,7 @@ impl<const N: usize> JointUpdate<N> {
             self.cands.push(Candidate {
                 label: e.label,
                 pred: e.density.clone(),
+                talking: m.voice.predict(e.talking, m.dt),
                 existence: m.survival,
                 ready: false,
             });
@@ -181,9 +210,16 @@ impl<const N: usize> JointUpdate<N> {
         let n = self.cands.len();
         self.pd.clear();
         self.pd.resize(n * c, 0.0);
-        self.prepared.clear();
-        self.prepared.resize(n * c, None);
-        self.proposal.reset(n, c);
+        self.log_pd.clear();
+        self.log_pd.resize(n * c, (0.0, f64::NEG_INFINITY));
+        self.audio_pd.clear();
+        self.audio_pd.resize(n * c, (0.0, 0.0));
+        self.prep_idx.clear();
+        self.prep_idx.resize(n * c, NONE);
+        self.preps.clear();
+        self.gains.clear();
+        let counts: Vec<usize> = m.scans.iter().map(|s| s.z.len()).collect();
+        self.proposal.reset(n, &counts);
         self.keys.clear();
         self.children.clear();
         self.child_logw.clear();
@@ -197,10 +233,10 @@ impl<const N: usize> JointUpdate<N> {
             return;
         }
         let births = m.births.len();
-        if c >= births {
-            if let Some(p) = predict(&prior.entries[c - births].density, &m.f, &m.q) {
-                self.cands[c].pred = p;
-            }
+        if c >= births
+            && let Some(p) = m.transition.predict(&prior.entries[c - births].density)
+        {
+            self.cands[c].pred = p;
         }
         let cand = &self.cands[c];
         self.proposal.set_existence(c, cand.existence);
@@ -216,21 +252,36 @@ impl<const N: usize> JointUpdate<N> {
             if prep.is_none() {
                 pd = 0.0;
             }
+            if sensor.audio {
+                // Silent tracks are detected with the floor probability; the row uses the
+                // detection probability marginal over the talking mode.
+                let silent = sensor.min_p_detect.min(pd);
+                self.audio_pd[c * sc + s] = (pd, silent);
+                pd = cand.talking * pd + (1.0 - cand.talking) * silent;
+            }
+            let log_miss = (-pd).ln_1p();
+            let log_hit = pd.ln() - sensor.log_clutter;
+            self.log_pd[c * sc + s] = (log_miss, log_hit);
             self.row.clear();
-            self.row.push((0, (-pd).ln_1p()));
+            self.row.push((0, log_miss));
             if let Some(p) = &prep {
-                let log_pd = pd.ln() - sensor.log_clutter;
                 for (j, z) in scan.z.iter().enumerate() {
                     let d2 = p.mahalanobis(&p.innovation(sensor, z));
                     if d2 <= sensor.gate {
-                        self.row.push((j as u16 + 1, log_pd + p.log_likelihood(d2)));
+                        self.row
+                            .push((j as u16 + 1, log_hit + p.log_likelihood(d2)));
                     }
                 }
             }
             self.proposal.set_row(c, s, &self.row);
             self.pd[c * sc + s] = pd;
-            self.prepared[c * sc + s] = prep;
+            if let Some(p) = prep {
+                self.prep_idx[c * sc + s] = self.preps.len() as u32;
+                self.preps.push(p);
+                self.gains.push(None);
+            }
         }
+        self.proposal.seal(c);
         self.cands[c].ready = true;
     }
 
@@ -241,23 +292,39 @@ impl<const N: usize> JointUpdate<N> {
         let mut logw = parent_logw;
         self.ids.clear();
         for i in 0..self.local.len() {
-            let c = self.local[i] as usize;
-            let g = &self.gamma[i * stride..(i + 1) * stride];
-            if g[0] == DEAD {
-                logw += (-self.cands[c].existence).ln_1p();
+            let row = i * stride..(i + 1) * stride;
+            // Consecutive samples of a chain differ in few tracks: reuse the last lookup.
+            if self.memo_valid[i] && self.memo_rows[row.clone()] == self.gamma[row.clone()] {
+                logw += self.memo_terms[i];
+                if self.memo_ids[i] != NONE {
+                    self.ids.push(self.memo_ids[i]);
+                }
                 continue;
             }
-            self.key.clear();
-            self.key.push(c as u32);
-            self.key.extend(g[1..].iter().map(|&j| j as u32));
-            let (id, new) = self.keys.insert(&self.key);
-            if new {
-                let (entry, term) = self.child_entry(c, m);
-                self.new_entries.push(entry);
-                self.new_terms.push(term);
+            let c = self.local[i] as usize;
+            let (id, term) = if self.gamma[row.start] == DEAD {
+                (NONE, self.proposal.log_dead(c))
+            } else {
+                self.key.clear();
+                self.key.push(c as u32);
+                self.key
+                    .extend(self.gamma[row.start + 1..row.end].iter().map(|&j| j as u32));
+                let (id, new) = self.keys.insert(&self.key);
+                if new {
+                    let (entry, term) = self.child_entry(c, m);
+                    self.new_entries.push(Some(entry));
+                    self.new_terms.push(term);
+                }
+                (id as u32, self.new_terms[id])
+            };
+            self.memo_rows[row.clone()].copy_from_slice(&self.gamma[row]);
+            self.memo_valid[i] = true;
+            self.memo_ids[i] = id;
+            self.memo_terms[i] = term;
+            logw += term;
+            if id != NONE {
+                self.ids.push(id);
             }
-            logw += self.new_terms[id];
-            self.ids.push(id as u32);
         }
         if m.camera.occlusion {
             logw += self.occlusion_correction(m);
@@ -276,50 +343,58 @@ impl<const N: usize> JointUpdate<N> {
 
     /// The updated density of candidate `c` under the associations in `self.key[1..]`, and its
     /// log weight factor: log P_S (or r_B) + per-sensor miss/detection terms + log likelihood.
-    fn child_entry(&self, c: usize, m: &StepModel<N>) -> (Entry<N>, f64) {
+    ///
+    /// The detecting sensors update in sequence (exact for linear-Gaussian sensors); the first
+    /// uses the statistics cached at the prediction, the others are computed afresh.
+    fn child_entry(&mut self, c: usize, m: &StepModel<N>) -> (Entry<N>, f64) {
         let sc = m.scans.len();
-        let cand = &self.cands[c];
-        let mut term = cand.existence.ln();
-        let mut density = cand.pred.clone();
-        let mut first = true;
+        let mut term = self.proposal.log_alive(c);
         let mut audio = false;
         let mut assoc = Vec::new();
+        // Audio outcomes are scored jointly with the talking mode (sequentially, which is exact
+        // for sensors independent given the mode).
+        let mut talking = self.cands[c].talking;
         for (s, &j) in self.key[1..].iter().enumerate() {
-            let pd = self.pd[c * sc + s];
-            if j == 0 {
-                term += (-pd).ln_1p();
+            let sensor = &m.sensors[m.scans[s].sensor];
+            if sensor.audio {
+                let (pd_talk, pd_silent) = self.audio_pd[c * sc + s];
+                let (f, after) = audio_outcome(talking, pd_talk, pd_silent, j != 0);
+                talking = after;
+                term += f.ln();
+                if j != 0 {
+                    term -= sensor.log_clutter;
+                }
+            } else {
+                let (log_miss, log_hit) = self.log_pd[c * sc + s];
+                term += if j == 0 { log_miss } else { log_hit };
+            }
+            if j != 0 {
+                audio |= sensor.audio;
+                assoc.push((s as u16, j as u16 - 1));
+            }
+        }
+        let mut density: Option<Gaussian<N>> = None;
+        for s in 0..sc {
+            let j = self.key[1 + s];
+            if j == 0 || term == f64::NEG_INFINITY {
                 continue;
             }
-            let scan = &m.scans[s];
-            let sensor = &m.sensors[scan.sensor];
-            let z: &Vector3<f64> = &scan.z[j as usize - 1];
-            term += pd.ln() - sensor.log_clutter;
-            let prep = if first {
-                self.prepared[c * sc + s].as_ref()
-            } else {
-                None
+            let sensor = &m.sensors[m.scans[s].sensor];
+            let z = m.scans[s].z[j as usize - 1];
+            let step = match &density {
+                None => self.first_stage(c, s, &z, m),
+                Some(prior) => update(sensor, prior, &z, m.ukf),
             };
-            match prep {
-                Some(p) => {
-                    let nu = p.innovation(sensor, z);
-                    term += p.log_likelihood(p.mahalanobis(&nu));
-                    density = Gaussian {
-                        mean: p.mean(&nu),
-                        cov: p.cov,
-                    };
+            match step {
+                Some((g, ll)) => {
+                    density = Some(g);
+                    term += ll;
                 }
-                None => match update(sensor, &density, z, m.ukf) {
-                    Some((g, ll)) => {
-                        density = g;
-                        term += ll;
-                    }
-                    None => term = f64::NEG_INFINITY,
-                },
+                None => term = f64::NEG_INFINITY,
             }
-            first = false;
-            audio |= sensor.audio;
-            assoc.push((s as u16, j as u16 - 1));
         }
+        let cand = &self.cands[c];
+        let mut density = density.unwrap_or_else(|| cand.pred.clone());
         if let Some(region) = &m.clamp {
             clamp_position(&mut density.mean, region);
         }
@@ -327,9 +402,34 @@ impl<const N: usize> JointUpdate<N> {
             label: cand.label,
             density,
             audio,
+            talking,
             assoc,
         };
         (entry, term)
+    }
+
+    /// Update of the prediction of candidate `c` by scan `s` with the cached statistics.
+    fn first_stage(
+        &mut self,
+        c: usize,
+        s: usize,
+        z: &Vector3<f64>,
+        m: &StepModel<N>,
+    ) -> Option<(Gaussian<N>, f64)> {
+        let i = self.prep_idx[c * m.scans.len() + s];
+        if i == NONE {
+            return None;
+        }
+        let i = i as usize;
+        let sensor = &m.sensors[m.scans[s].sensor];
+        if self.gains[i].is_none() {
+            self.gains[i] = self.preps[i].complete(sensor, &self.cands[c].pred);
+        }
+        let (p, g) = (&self.preps[i], self.gains[i].as_ref()?);
+        let nu = p.innovation(sensor, z);
+        let ll = p.log_likelihood(p.mahalanobis(&nu));
+        let mean = g.mean(&self.cands[c].pred.mean, &nu);
+        Some((Gaussian { mean, cov: g.cov }, ll))
     }
 
     /// Importance correction for occlusion-aware camera detection (spec 000 A5): the proposal
@@ -402,7 +502,9 @@ impl<const N: usize> JointUpdate<N> {
                 let e = e as usize;
                 if remap[e] == u32::MAX {
                     remap[e] = out.entries.len() as u32;
-                    out.entries.push(self.new_entries[e].clone());
+                    if let Some(entry) = self.new_entries[e].take() {
+                        out.entries.push(entry);
+                    }
                 }
                 out.ids.push(remap[e]);
             }

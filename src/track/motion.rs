@@ -48,7 +48,7 @@ impl<const N: usize> MotionModel<N> {
 
     /// Checks the state layout and the parameters.
     pub fn validated(self) -> Result<Self, ConfigError> {
-        if N % 2 != 0 || !(2..=6).contains(&N) {
+        if !N.is_multiple_of(2) || !(2..=6).contains(&N) {
             return Err(ConfigError::new(
                 "motion",
                 "the state must be [position; velocity] with 1 to 3 axes",

@@ -12,7 +12,7 @@ pub(crate) fn occludes(eye: &Vec3, target: &Vec3, centre: &Vec3, half: &Vec3) ->
     let e = (eye - centre).component_div(half);
     let d = (target - eye).component_div(half);
     let a = d.dot(&d);
-    if !(a > 1e-18) {
+    if a.is_nan() || a <= 1e-18 {
         return false;
     }
     let to_target = target - eye;

@@ -372,7 +372,8 @@ impl<const N: usize> Sensor<N> {
                     return Err(bad(index, "h", "h and r must be finite"));
                 }
                 let sym = (noise + noise.transpose()) * 0.5;
-                if (noise - &sym).amax() > 1e-9 * sym.amax().max(1.0) || sym.clone().cholesky().is_none()
+                if (noise - &sym).amax() > 1e-9 * sym.amax().max(1.0)
+                    || sym.clone().cholesky().is_none()
                 {
                     return Err(bad(index, "r", "must be symmetric positive definite"));
                 }
@@ -452,7 +453,11 @@ impl<const N: usize> Sensor<N> {
                 if n < 1e-6 {
                     return None;
                 }
-                Some(Vector3::new((axis.dot(&d) / n).clamp(-1.0, 1.0).acos(), 0.0, 0.0))
+                Some(Vector3::new(
+                    (axis.dot(&d) / n).clamp(-1.0, 1.0).acos(),
+                    0.0,
+                    0.0,
+                ))
             }
             Observation::Camera(c) => c
                 .project(&position_of(x))
@@ -573,12 +578,22 @@ impl<const N: usize> Sensor<N> {
                 finite(p.as_slice())?;
                 Ok(*p)
             }
-            (Observation::Direction { elevation, .. }, Measurement::Direction { azimuth, elevation: el }) => {
+            (
+                Observation::Direction { elevation, .. },
+                Measurement::Direction {
+                    azimuth,
+                    elevation: el,
+                },
+            ) => {
                 finite(&[*azimuth])?;
                 if *elevation {
                     let e = el.ok_or(Rejection::WrongKind)?;
                     finite(&[e])?;
-                    Ok(Vector3::new(wrap_angle(*azimuth), e.clamp(-PI / 2.0, PI / 2.0), 0.0))
+                    Ok(Vector3::new(
+                        wrap_angle(*azimuth),
+                        e.clamp(-PI / 2.0, PI / 2.0),
+                        0.0,
+                    ))
                 } else {
                     Ok(Vector3::new(wrap_angle(*azimuth), 0.0, 0.0))
                 }

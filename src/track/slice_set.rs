@@ -64,8 +64,7 @@ impl<T: Copy + Eq + Into<u64>> SliceSet<T> {
             slot = (slot + 1) & mask;
         }
         let id = self.spans.len();
-        self.spans
-            .push((self.arena.len() as u32, key.len() as u32));
+        self.spans.push((self.arena.len() as u32, key.len() as u32));
         self.arena.extend_from_slice(key);
         self.hashes.push(h);
         self.table[slot] = id as u32;
