@@ -56,12 +56,15 @@ impl Mixture {
     }
 }
 
+/// A source signal and its talk spurts (s).
+type Signal = (Vec<f64>, Vec<(f64, f64)>);
+
 /// Sources with the given signals at `positions` in a shoebox room, plus white sensor noise at
 /// `snr_db` below the mean source image power at the reference microphone.
 fn room_mixture(
     mics: Vec<Vec3>,
     positions: Vec<Vec3>,
-    signals: Vec<(Vec<f64>, Vec<(f64, f64)>)>,
+    signals: Vec<Signal>,
     rt60: f64,
     snr_db: f64,
     seed: u64,
@@ -453,6 +456,12 @@ fn survey() {
     }
 }
 
+/// The null-steering fixed beamformer alone, without post-filter.
+fn fixed_only() -> SeparatorConfig {
+    serde_json::from_str(r#"{"beamformer": "null_steering", "post_filter": {"kind": "none"}}"#)
+        .unwrap()
+}
+
 fn static_targets(positions: &[Vec3], speaking: f64) -> Vec<Target> {
     positions
         .iter()
@@ -513,9 +522,7 @@ fn fixed_beamformer_is_distortionless_with_deep_nulls_in_free_field() {
     let n = (2.0 * FS) as usize;
     let signals = (0..3).map(|i| band_noise(n, 20 + i)).collect();
     let mixture = free_field(uca(8, 0.05, centre), positions.clone(), signals);
-    let mut cfg = SeparatorConfig::default();
-    cfg.beamformer = avsep::separate::BeamformerKind::NullSteering;
-    cfg.post_filter.kind = avsep::separate::PostFilterKind::None;
+    let cfg = fixed_only();
     let r = run(&mixture, &cfg, true, |_, _| static_targets(&positions, 1.0));
     let from = (0.2 * FS) as usize;
     for i in 0..3 {
@@ -882,9 +889,7 @@ fn direction_only_targets_steer_in_the_far_field() {
         positions.clone(),
         (0..2).map(|i| band_noise(n, 70 + i)).collect(),
     );
-    let mut cfg = SeparatorConfig::default();
-    cfg.beamformer = avsep::separate::BeamformerKind::NullSteering;
-    cfg.post_filter.kind = avsep::separate::PostFilterKind::None;
+    let cfg = fixed_only();
     // Directions only: points 5 m away along the true directions from the array centre.
     let far: Vec<Vec3> = positions
         .iter()

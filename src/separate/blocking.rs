@@ -34,20 +34,23 @@ impl Blocking {
 
     /// Builds the reflector that blocks steering vector `a` (length M).
     pub fn set(&mut self, a: &[Complex]) {
-        let a0 = a[0].norm();
+        let m = a.len();
+        self.v.resize(m, Complex::new(0.0, 0.0));
+        let a0 = a[0].norm_sqr().sqrt();
         // Rotating x so that x_0 >= 0 spans the same line and keeps the basis continuous.
         let rot = if a0 > 1e-300 {
             a[0].conj() / a0
         } else {
             Complex::new(1.0, 0.0)
         };
+        let v = &mut self.v[..m];
         let mut norm2 = 0.0;
-        for (v, x) in self.v.iter_mut().zip(a) {
-            *v = x * rot;
-            norm2 += v.norm_sqr();
+        for i in 0..m {
+            v[i] = a[i] * rot;
+            norm2 += v[i].norm_sqr();
         }
         let norm = norm2.sqrt();
-        self.v[0].re += norm;
+        v[0].re += norm;
         let vv = 2.0 * norm * (norm + a0);
         self.scale = if vv > 1e-300 && vv.is_finite() {
             2.0 / vv
@@ -58,14 +61,35 @@ impl Blocking {
 
     /// The blocked signals u = B^H y (length M - 1).
     pub fn apply(&self, y: &[Complex], u: &mut [Complex]) {
-        let mut vy = Complex::new(0.0, 0.0);
-        for (v, y) in self.v.iter().zip(y) {
-            vy += v.conj() * y;
+        let c = self.projection(y);
+        let m = self.v.len();
+        let (v, y, u) = (&self.v[1..m], &y[1..m], &mut u[..m - 1]);
+        for i in 0..m - 1 {
+            u[i] = y[i] - v[i] * c;
         }
-        let c = vy * self.scale;
-        for ((u, v), y) in u.iter_mut().zip(&self.v[1..]).zip(&y[1..]) {
-            *u = y - v * c;
+    }
+
+    /// The blocked signals u = B^H y with real and imaginary parts apart (first M - 1 entries).
+    pub fn apply_split(&self, y: &[Complex], ur: &mut [f64], ui: &mut [f64]) {
+        let c = self.projection(y);
+        let m = self.v.len();
+        let (v, y, ur, ui) = (&self.v[1..m], &y[1..m], &mut ur[..m - 1], &mut ui[..m - 1]);
+        for i in 0..m - 1 {
+            ur[i] = y[i].re - (v[i].re * c.re - v[i].im * c.im);
+            ui[i] = y[i].im - (v[i].re * c.im + v[i].im * c.re);
         }
+    }
+
+    /// s v^H y, the component removed by the reflection.
+    fn projection(&self, y: &[Complex]) -> Complex {
+        let m = self.v.len();
+        let (v, y) = (&self.v[..m], &y[..m]);
+        let (mut re, mut im) = (0.0, 0.0);
+        for i in 0..m {
+            re += v[i].re * y[i].re + v[i].im * y[i].im;
+            im += v[i].re * y[i].im - v[i].im * y[i].re;
+        }
+        Complex::new(re * self.scale, im * self.scale)
     }
 
     /// The combination B q of the basis columns (length M), e.g. the canceller's share of the

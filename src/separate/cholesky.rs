@@ -6,6 +6,7 @@ use crate::dsp::Complex;
 /// Factors the Hermitian positive-definite `n x n` matrix `a` (row-major, both triangles set) in
 /// place into its lower Cholesky factor L with A = L L^H (the upper triangle is left stale).
 /// Returns false when a pivot is not positive and finite (not positive definite).
+#[inline]
 pub fn factor(a: &mut [Complex], n: usize) -> bool {
     for j in 0..n {
         let mut diag = a[j * n + j].re;
@@ -30,6 +31,7 @@ pub fn factor(a: &mut [Complex], n: usize) -> bool {
 }
 
 /// Solves L L^H x = b in place (`b` becomes x) with the factor from [`factor`].
+#[inline]
 pub fn solve(l: &[Complex], n: usize, b: &mut [Complex]) {
     // Forward: L z = b.
     for i in 0..n {
@@ -46,19 +48,6 @@ pub fn solve(l: &[Complex], n: usize, b: &mut [Complex]) {
             s -= l[p * n + i].conj() * b[p];
         }
         b[i] = s / l[i * n + i].re;
-    }
-}
-
-/// Inverts the factored matrix: writes (L L^H)^{-1} (Hermitian, both triangles) into `out`.
-/// `col` is scratch of length `n`.
-pub fn invert(l: &[Complex], n: usize, out: &mut [Complex], col: &mut [Complex]) {
-    for j in 0..n {
-        col[..n].fill(Complex::new(0.0, 0.0));
-        col[j] = Complex::new(1.0, 0.0);
-        solve(l, n, &mut col[..n]);
-        for i in 0..n {
-            out[i * n + j] = col[i];
-        }
     }
 }
 
@@ -110,19 +99,6 @@ mod tests {
                 s += orig[i * n + j] * x[j];
             }
             assert!((s - rhs[i]).norm() < 1e-12);
-        }
-        let mut inv = vec![Complex::new(0.0, 0.0); 9];
-        let mut col = vec![Complex::new(0.0, 0.0); 3];
-        invert(&a, n, &mut inv, &mut col);
-        for i in 0..n {
-            for j in 0..n {
-                let mut s = Complex::new(0.0, 0.0);
-                for p in 0..n {
-                    s += orig[i * n + p] * inv[p * n + j];
-                }
-                let e = if i == j { 1.0 } else { 0.0 };
-                assert!((s - Complex::new(e, 0.0)).norm() < 1e-12);
-            }
         }
     }
 

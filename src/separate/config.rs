@@ -377,14 +377,18 @@ mod tests {
         let mut c = SeparatorConfig::default();
         c.rls.forgetting = 1.0;
         assert_eq!(c.validate().unwrap_err().field, "rls.forgetting");
-        let mut c = SeparatorConfig::default();
-        c.hop = 2048;
+        let c = SeparatorConfig {
+            hop: 2048,
+            ..SeparatorConfig::default()
+        };
         assert_eq!(c.validate().unwrap_err().field, "frame");
         let mut c = SeparatorConfig::default();
         c.adaptation.presence_high = 0.1;
         assert_eq!(c.validate().unwrap_err().field, "adaptation.presence_high");
-        let mut c = SeparatorConfig::default();
-        c.max_frequency_hz = Some(f64::NAN);
+        let c = SeparatorConfig {
+            max_frequency_hz: Some(f64::NAN),
+            ..SeparatorConfig::default()
+        };
         assert_eq!(c.validate().unwrap_err().field, "max_frequency_hz");
     }
 }

@@ -12,13 +12,16 @@ use super::cholesky;
 use crate::dsp::Complex;
 
 /// Solver of the loaded null-steering problem for one constraint matrix, reused across bins.
+///
+/// With G + eps I = L L^H it keeps L^{-1}, so X = (G + eps I)^{-1} = L^{-H} L^{-1} is applied as two
+/// triangular products and diag(X) (for the unit-response scale) is a sum of squares.
 #[derive(Debug, Clone, Default)]
 pub struct NullSteering {
     n: usize,
     gram: Vec<Complex>,
-    inv: Vec<Complex>,
-    col: Vec<Complex>,
+    linv: Vec<Complex>,
     z: Vec<Complex>,
+    t: Vec<Complex>,
     scale: Vec<f64>,
 }
 
@@ -26,23 +29,41 @@ impl NullSteering {
     /// Prepares the weights for the constraint matrix `d` (`n` steering columns of `m` entries,
     /// column after column).
     pub fn prepare(&mut self, d: &[Complex], n: usize, m: usize, loading: f64) {
+        // Small label counts get copies with constant loop bounds (unrolled).
+        match (n, m) {
+            (1, 8) => self.prepare_sized(d, 1, 8, loading),
+            (2, 8) => self.prepare_sized(d, 2, 8, loading),
+            (3, 8) => self.prepare_sized(d, 3, 8, loading),
+            (4, 8) => self.prepare_sized(d, 4, 8, loading),
+            (1, _) => self.prepare_sized(d, 1, m, loading),
+            (2, _) => self.prepare_sized(d, 2, m, loading),
+            (3, _) => self.prepare_sized(d, 3, m, loading),
+            (4, _) => self.prepare_sized(d, 4, m, loading),
+            _ => self.prepare_sized(d, n, m, loading),
+        }
+    }
+
+    #[inline(always)]
+    fn prepare_sized(&mut self, d: &[Complex], n: usize, m: usize, loading: f64) {
         self.n = n;
-        self.gram.resize(n * n, Complex::new(0.0, 0.0));
-        self.inv.resize(n * n, Complex::new(0.0, 0.0));
-        self.col.resize(n, Complex::new(0.0, 0.0));
-        self.z.resize(n, Complex::new(0.0, 0.0));
+        let zero = Complex::new(0.0, 0.0);
+        self.gram.resize(n * n, zero);
+        self.linv.resize(n * n, zero);
+        self.z.resize(n, zero);
+        self.t.resize(n, zero);
         self.scale.resize(n, 1.0);
         let mut trace = 0.0;
         for i in 0..n {
             let ci = &d[i * m..(i + 1) * m];
             for j in i..n {
                 let cj = &d[j * m..(j + 1) * m];
-                let mut s = Complex::new(0.0, 0.0);
-                for (x, y) in ci.iter().zip(cj) {
-                    s += x.conj() * y;
+                let (mut re, mut im) = (0.0, 0.0);
+                for k in 0..m {
+                    re += ci[k].re * cj[k].re + ci[k].im * cj[k].im;
+                    im += ci[k].re * cj[k].im - ci[k].im * cj[k].re;
                 }
-                self.gram[i * n + j] = s;
-                self.gram[j * n + i] = s.conj();
+                self.gram[i * n + j] = Complex::new(re, im);
+                self.gram[j * n + i] = Complex::new(re, -im);
             }
             trace += self.gram[i * n + i].re;
         }
@@ -52,19 +73,36 @@ impl NullSteering {
             self.scale[i] = self.gram[i * n + i].re;
             self.gram[i * n + i].re += eps;
         }
-        if cholesky::factor(&mut self.gram, n) {
-            cholesky::invert(&self.gram, n, &mut self.inv, &mut self.col);
+        for x in self.linv[..n * n].iter_mut() {
+            *x = zero;
+        }
+        if cholesky::factor(&mut self.gram[..n * n], n) {
+            let (l, li) = (&self.gram, &mut self.linv);
+            for j in 0..n {
+                li[j * n + j] = Complex::new(1.0 / l[j * n + j].re, 0.0);
+                for i in j + 1..n {
+                    let mut s = zero;
+                    for p in j..i {
+                        s += l[i * n + p] * li[p * n + j];
+                    }
+                    li[i * n + j] = -s / l[i * n + i].re;
+                }
+            }
         } else {
             // Not positive definite (non-finite steering): fall back to delay-and-sum per column.
-            self.inv.fill(Complex::new(0.0, 0.0));
-            for (i, g) in self.scale.iter().enumerate() {
-                let g = if g.is_finite() { *g } else { 0.0 };
-                self.inv[i * n + i] = Complex::new(1.0 / (g + eps), 0.0);
+            for i in 0..n {
+                let g = if self.scale[i].is_finite() {
+                    self.scale[i]
+                } else {
+                    0.0
+                };
+                self.linv[i * n + i] = Complex::new(1.0 / (g + eps).sqrt(), 0.0);
             }
         }
         for i in 0..n {
-            // (G X)_ii = 1 - eps X_ii, real and in (0, 1] for a Hermitian positive X.
-            let c = 1.0 - eps * self.inv[i * n + i].re;
+            // X_ii = sum_k |Linv_ki|^2; (G X)_ii = 1 - eps X_ii is real and in (0, 1].
+            let xii: f64 = (i..n).map(|k| self.linv[k * n + i].norm_sqr()).sum();
+            let c = 1.0 - eps * xii;
             self.scale[i] = if c > 1e-12 && c.is_finite() {
                 1.0 / c
             } else {
@@ -75,20 +113,45 @@ impl NullSteering {
 
     /// Outputs W_i^H y of every column's beamformer at once.
     pub fn outputs(&mut self, d: &[Complex], m: usize, y: &[Complex], out: &mut [Complex]) {
-        let n = self.n;
-        for (i, z) in self.z.iter_mut().enumerate() {
-            let mut s = Complex::new(0.0, 0.0);
-            for (a, y) in d[i * m..(i + 1) * m].iter().zip(y) {
-                s += a.conj() * y;
-            }
-            *z = s;
+        match (self.n, m) {
+            (2, 8) => self.outputs_sized(d, 2, 8, y, out),
+            (3, 8) => self.outputs_sized(d, 3, 8, y, out),
+            (4, 8) => self.outputs_sized(d, 4, 8, y, out),
+            (n, _) => self.outputs_sized(d, n, m, y, out),
         }
-        // W_i^H y = e_i^T X^H D^H y / c_i and X is Hermitian.
-        for (i, o) in out.iter_mut().enumerate().take(n) {
-            let row = &self.inv[i * n..(i + 1) * n];
+    }
+
+    #[inline(always)]
+    fn outputs_sized(
+        &mut self,
+        d: &[Complex],
+        n: usize,
+        m: usize,
+        y: &[Complex],
+        out: &mut [Complex],
+    ) {
+        let y = &y[..m];
+        for i in 0..n {
+            let a = &d[i * m..(i + 1) * m];
+            let (mut re, mut im) = (0.0, 0.0);
+            for k in 0..m {
+                re += a[k].re * y[k].re + a[k].im * y[k].im;
+                im += a[k].re * y[k].im - a[k].im * y[k].re;
+            }
+            self.z[i] = Complex::new(re, im);
+        }
+        // W_i^H y = e_i^T X D^H y / c_i (X Hermitian), X = Linv^H Linv.
+        for k in 0..n {
             let mut s = Complex::new(0.0, 0.0);
-            for (x, z) in row.iter().zip(&self.z) {
-                s += x * z;
+            for p in 0..=k {
+                s += self.linv[k * n + p] * self.z[p];
+            }
+            self.t[k] = s;
+        }
+        for (i, o) in out.iter_mut().enumerate().take(n) {
+            let mut s = Complex::new(0.0, 0.0);
+            for k in i..n {
+                s += self.linv[k * n + i].conj() * self.t[k];
             }
             *o = s * self.scale[i];
         }
@@ -99,7 +162,12 @@ impl NullSteering {
         let n = self.n;
         out[..m].fill(Complex::new(0.0, 0.0));
         for j in 0..n {
-            let x = self.inv[j * n + i] * self.scale[i];
+            // x_j = (X e_i)_j = sum_k conj(Linv_kj) Linv_ki.
+            let mut x = Complex::new(0.0, 0.0);
+            for k in i.max(j)..n {
+                x += self.linv[k * n + j].conj() * self.linv[k * n + i];
+            }
+            let x = x * self.scale[i];
             for (o, a) in out.iter_mut().zip(&d[j * m..(j + 1) * m]) {
                 *o += a * x;
             }

@@ -105,7 +105,15 @@ impl PostFilter {
             }
             PostFilterKind::Wiener => {
                 let a = self.exponent;
-                let pow = |x: f64| if a == 1.0 { x } else { x.powf(a) };
+                let pow = |x: f64| {
+                    if a == 1.0 {
+                        x
+                    } else if a == 2.0 {
+                        x * x
+                    } else {
+                        x.powf(a)
+                    }
+                };
                 let mut total = pow(residual);
                 for (g, s) in gains.iter_mut().zip(state.iter()) {
                     let xi = if self.use_noise {
@@ -214,7 +222,7 @@ mod tests {
         let mut noise_gain = 0.0;
         for n in 0..300 {
             s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-            let ph = (s >> 11) as f64 / (1u64 << 53) as f64 * 6.283;
+            let ph = (s >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU;
             let burst = if n % 50 == 49 { 30.0 } else { 1.0 };
             f.gains(
                 &[Complex::from_polar(burst, ph)],

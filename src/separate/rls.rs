@@ -17,6 +17,39 @@ use crate::dsp::Complex;
 /// inverse correlation bounded on digital silence.
 pub const POWER_FLOOR: f64 = 1e-14;
 
+/// The leakage update runs on one call in this many (with a step as much larger), which keeps
+/// its cost a fraction of the main update's; callers stagger `leak_index` across bins.
+pub const LEAK_EVERY: usize = 4;
+
+/// Shape of one bin's canceller state: `l` weights, stored padded to `lp` (a multiple of 4) with
+/// real and imaginary parts apart, so the inner loops run over contiguous equal-length rows that
+/// the compiler vectorises. Layout: V re, V im (`lp` each), then P re, P im (`lp * lp` each,
+/// row-major), then a scale s (and padding to keep rows aligned): the inverse correlation is
+/// s P, so the division by the forgetting factor touches one number instead of the matrix.
+/// Padding entries stay zero.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dims {
+    /// Number of blocked channels (M - 1).
+    pub l: usize,
+    /// `l` rounded up to a multiple of 4.
+    pub lp: usize,
+}
+
+impl Dims {
+    /// Dimensions for `l` blocked channels.
+    pub fn new(l: usize) -> Self {
+        Self {
+            l,
+            lp: l.div_ceil(4) * 4,
+        }
+    }
+
+    /// Values of state per bin.
+    pub fn stride(&self) -> usize {
+        2 * self.lp + 2 * self.lp * self.lp + 4
+    }
+}
+
 /// Per-step constants of the canceller.
 #[derive(Debug, Clone, Copy)]
 pub struct RlsStep {
@@ -28,109 +61,256 @@ pub struct RlsStep {
     pub max_norm2: f64,
 }
 
+/// A bin's state split into V re, V im, P re, P im and the scale of P.
+type Parts<'a> = (
+    &'a mut [f64],
+    &'a mut [f64],
+    &'a mut [f64],
+    &'a mut [f64],
+    &'a mut f64,
+);
+
+fn parts(state: &mut [f64], d: Dims) -> Parts<'_> {
+    let (v, p) = state.split_at_mut(2 * d.lp);
+    let (vr, vi) = v.split_at_mut(d.lp);
+    let (p, tail) = p.split_at_mut(2 * d.lp * d.lp);
+    let (pr, pi) = p.split_at_mut(d.lp * d.lp);
+    (vr, vi, pr, pi, &mut tail[0])
+}
+
 /// Resets one bin's canceller: V = 0, P = I / (delta * power).
-pub fn reset(v: &mut [Complex], p: &mut [Complex], l: usize, delta: f64, power: f64) {
-    v.fill(Complex::new(0.0, 0.0));
-    p.fill(Complex::new(0.0, 0.0));
+pub fn reset(state: &mut [f64], d: Dims, delta: f64, power: f64) {
+    state.fill(0.0);
     let p0 = 1.0 / (delta * power.max(POWER_FLOOR));
-    for i in 0..l {
-        p[i * l + i] = Complex::new(p0, 0.0);
+    let (_, _, pr, _, scale) = parts(state, d);
+    for i in 0..d.l {
+        pr[i * d.lp + i] = p0;
+    }
+    *scale = 1.0;
+}
+
+/// Trace of the inverse correlation matrix (a health measure: it stays bounded with leakage).
+pub fn inverse_correlation_trace(state: &[f64], d: Dims) -> f64 {
+    let p = &state[2 * d.lp..];
+    let scale = p[2 * d.lp * d.lp];
+    (0..d.l).map(|i| p[i * d.lp + i]).sum::<f64>() * scale
+}
+
+/// The weights V of one bin (length `l`).
+pub fn weights(state: &[f64], d: Dims, out: &mut [Complex]) {
+    for (i, o) in out.iter_mut().enumerate().take(d.l) {
+        *o = Complex::new(state[i], state[d.lp + i]);
     }
 }
 
-/// A-priori output e = d - V^H u (the canceller's output with the weights before this step).
-pub fn output(v: &[Complex], u: &[Complex], d: Complex) -> Complex {
-    let mut s = d;
-    for (v, u) in v.iter().zip(u) {
-        s -= v.conj() * u;
+/// A-priori output e = d - V^H u (the canceller's output with the weights before this step);
+/// `ur`, `ui` are the blocked signals (length `lp`, zero padded).
+pub fn output(state: &[f64], d: Dims, ur: &[f64], ui: &[f64], fixed: Complex) -> Complex {
+    let (vr, vi) = (&state[..d.lp], &state[d.lp..2 * d.lp]);
+    let (mut re, mut im) = (0.0, 0.0);
+    for j in 0..d.lp {
+        // conj(v) u
+        re += vr[j] * ur[j] + vi[j] * ui[j];
+        im += vr[j] * ui[j] - vi[j] * ur[j];
     }
-    s
+    fixed - Complex::new(re, im)
 }
 
-/// One weighted RLS step with leakage on coordinate `leak_index`. `e` is the a-priori output,
-/// `power` the bin's input power, `pi` scratch of length `l`. Returns false (state untouched
-/// beyond repair) when the recursion produced something non-finite; the caller then resets.
+/// P <- P - h h^H. h_i h_j^* and h_j h_i^* come from the same products, so a Hermitian
+/// P stays exactly Hermitian without mirroring.
+#[inline(always)]
+fn rank_one_down(pr: &mut [f64], pi: &mut [f64], lp: usize, hr: &[f64], hi: &[f64]) {
+    // With the size hidden from the optimiser the row loop stays a loop of four-wide blocks; a
+    // known small size gets unrolled across rows into gathers and spills.
+    let lp = std::hint::black_box(lp);
+    let (hr, hi) = (&hr[..lp], &hi[..lp]);
+    for i in 0..lp {
+        let (ar, ai) = (hr[i], hi[i]);
+        let rr = &mut pr[i * lp..(i + 1) * lp];
+        let ri = &mut pi[i * lp..(i + 1) * lp];
+        // Fixed four-wide blocks along the row: one vector register each, whatever lp is.
+        for (((r4, i4), h4), g4) in rr
+            .chunks_exact_mut(4)
+            .zip(ri.chunks_exact_mut(4))
+            .zip(hr.chunks_exact(4))
+            .zip(hi.chunks_exact(4))
+        {
+            for q in 0..4 {
+                r4[q] -= ar * h4[q] + ai * g4[q];
+                i4[q] -= ai * h4[q] - ar * g4[q];
+            }
+        }
+    }
+}
+
+/// One weighted RLS step, with leakage when `leak_index` (a per-frame counter) says so. `e` is
+/// the a-priori output, `power` the bin's input power, `scratch` at least `2 lp` values. Returns
+/// false when the recursion produced something non-finite; the caller then resets the bin.
 #[allow(clippy::too_many_arguments)]
 pub fn adapt(
-    v: &mut [Complex],
-    p: &mut [Complex],
-    l: usize,
-    u: &[Complex],
+    state: &mut [f64],
+    d: Dims,
+    ur: &[f64],
+    ui: &[f64],
     e: Complex,
     beta: f64,
     power: f64,
     leak_index: usize,
     step: &RlsStep,
-    pi: &mut [Complex],
+    scratch: &mut [f64],
 ) -> bool {
-    if beta <= 0.0 || l == 0 {
+    if beta <= 0.0 || d.l == 0 {
         return true;
     }
-    let lam = 1.0 - (1.0 - step.forgetting) * beta;
-    // pi = P u and the conversion term u^H P u (real for Hermitian P).
-    let mut upu = 0.0;
-    for i in 0..l {
-        let row = &p[i * l..(i + 1) * l];
-        let mut s = Complex::new(0.0, 0.0);
-        for (x, y) in row.iter().zip(u) {
-            s += x * y;
-        }
-        pi[i] = s;
-        upu += (u[i].conj() * s).re;
+    let args = (ur, ui, e, beta, power, leak_index, step);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports AVX2 and FMA, checked just above.
+        return unsafe { adapt_avx2(state, d, args, scratch) };
     }
-    let den = lam + beta * upu;
+    adapt_dispatch::<Plain>(state, d, args, scratch)
+}
+
+/// [`adapt_dispatch`] compiled for AVX2 (four lanes instead of two) with fused multiply-adds.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn adapt_avx2(state: &mut [f64], d: Dims, args: StepArgs, scratch: &mut [f64]) -> bool {
+    adapt_dispatch::<Fused>(state, d, args, scratch)
+}
+
+/// a * b + c, rounded once where the CPU has fused multiply-add.
+trait MulAdd {
+    fn madd(a: f64, b: f64, c: f64) -> f64;
+}
+
+/// Separate multiply and add (no FMA unit assumed).
+struct Plain;
+
+impl MulAdd for Plain {
+    #[inline(always)]
+    fn madd(a: f64, b: f64, c: f64) -> f64 {
+        a * b + c
+    }
+}
+
+/// Fused multiply-add; only used in code compiled with the `fma` target feature.
+#[cfg(target_arch = "x86_64")]
+struct Fused;
+
+#[cfg(target_arch = "x86_64")]
+impl MulAdd for Fused {
+    #[inline(always)]
+    fn madd(a: f64, b: f64, c: f64) -> f64 {
+        a.mul_add(b, c)
+    }
+}
+
+#[inline(always)]
+fn adapt_dispatch<F: MulAdd>(
+    state: &mut [f64],
+    d: Dims,
+    args: StepArgs,
+    scratch: &mut [f64],
+) -> bool {
+    // Common padded sizes get their own copy with constant loop bounds (unrolled, vectorised).
+    match d.lp {
+        4 => adapt_sized::<F>(state, d, 4, args, scratch),
+        8 => adapt_sized::<F>(state, d, 8, args, scratch),
+        16 => adapt_sized::<F>(state, d, 16, args, scratch),
+        lp => adapt_sized::<F>(state, d, lp, args, scratch),
+    }
+}
+
+type StepArgs<'a> = (&'a [f64], &'a [f64], Complex, f64, f64, usize, &'a RlsStep);
+
+#[inline(always)]
+fn adapt_sized<F: MulAdd>(
+    state: &mut [f64],
+    d: Dims,
+    lp: usize,
+    (ur, ui, e, beta, power, leak_index, step): StepArgs,
+    scratch: &mut [f64],
+) -> bool {
+    let (ur, ui) = (&ur[..lp], &ui[..lp]);
+    let (vr, vi, pr, pi, scale) = parts(state, d);
+    let (hr, hi) = scratch[..2 * lp].split_at_mut(lp);
+    let lam = 1.0 - (1.0 - step.forgetting) * beta;
+    let sc = *scale;
+    // h = P u (the true inverse correlation is sc P). P is Hermitian, so
+    // (P u)_i = sum_j conj(P_ji) u_j: an axpy over contiguous rows. (The Hermitian structure of
+    // P only matters in its own update, so fused products are fine here.)
+    for i in 0..lp {
+        hr[i] = 0.0;
+        hi[i] = 0.0;
+    }
+    for j in 0..lp {
+        let (xr, xi) = (ur[j], ui[j]);
+        let (rr, ri) = (&pr[j * lp..(j + 1) * lp], &pi[j * lp..(j + 1) * lp]);
+        for i in 0..lp {
+            hr[i] = F::madd(rr[i], xr, F::madd(ri[i], xi, hr[i]));
+            hi[i] = F::madd(rr[i], xi, F::madd(-ri[i], xr, hi[i]));
+        }
+    }
+    // The conversion term u^H (sc P) u is real for a Hermitian P.
+    let mut upu = 0.0;
+    for i in 0..lp {
+        upu += ur[i] * hr[i] + ui[i] * hi[i];
+    }
+    let den = lam + beta * sc * upu;
     if !(den > 0.0 && den.is_finite()) {
         return false;
     }
     let g = beta / den;
-    let ec = e.conj();
-    for (vi, pii) in v.iter_mut().zip(pi.iter()) {
-        *vi += pii * (g * ec);
+    // V += g (sc P u) e^*.
+    let (er, ei) = (g * sc * e.re, -g * sc * e.im);
+    for i in 0..lp {
+        vr[i] = F::madd(hr[i], er, F::madd(-hi[i], ei, vr[i]));
+        vi[i] = F::madd(hr[i], ei, F::madd(hi[i], er, vi[i]));
     }
-    let inv_lam = 1.0 / lam;
-    // P <- (P - g pi pi^H) / lambda, upper triangle mirrored so P stays exactly Hermitian.
-    for i in 0..l {
-        let gi = pi[i] * g;
-        let d = (p[i * l + i].re - (gi * pi[i].conj()).re) * inv_lam;
-        p[i * l + i] = Complex::new(d, 0.0);
-        for j in i + 1..l {
-            let x = (p[i * l + j] - gi * pi[j].conj()) * inv_lam;
-            p[i * l + j] = x;
-            p[j * l + i] = x.conj();
+    // sc P <- (sc P - g sc^2 (P u)(P u)^H) / lambda, i.e. P -= g sc (P u)(P u)^H and sc /= lambda.
+    let sg = (g * sc).sqrt();
+    hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= sg);
+    rank_one_down(pr, pi, lp, hr, hi);
+    let mut sc = sc / lam;
+    // Leakage, every LEAK_EVERY-th call with a correspondingly larger step: R += c e_j e_j^H,
+    // i.e. with q = sc P e_j: sc P -= c q q^H / (1 + c q_j), and the weights move to the
+    // regularised solution V -= c q V_j / (1 + c q_j).
+    let c = step.leakage * power.max(POWER_FLOOR) * (d.l * LEAK_EVERY) as f64 * beta;
+    if c > 0.0 && leak_index % LEAK_EVERY == 0 {
+        let j = (leak_index / LEAK_EVERY) % d.l;
+        // Column j of P is the conjugate of row j.
+        for i in 0..lp {
+            hr[i] = pr[j * lp + i];
+            hi[i] = -pi[j * lp + i];
         }
+        let s = c / (1.0 + c * sc * hr[j]);
+        let (wr, wi) = (s * sc * vr[j], s * sc * vi[j]);
+        for i in 0..lp {
+            vr[i] -= hr[i] * wr - hi[i] * wi;
+            vi[i] -= hr[i] * wi + hi[i] * wr;
+        }
+        let ss = (s * sc).sqrt();
+        hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= ss);
+        rank_one_down(pr, pi, lp, hr, hi);
     }
-    // Leakage: R += c e_j e_j^H, i.e. P -= c q q^H / (1 + c q_j) with q = P e_j, and the weights
-    // move to the regularised solution V -= c q V_j / (1 + c q_j).
-    let c = step.leakage * power.max(POWER_FLOOR) * l as f64 * beta;
-    if c > 0.0 {
-        let j = leak_index % l;
-        for (i, q) in pi.iter_mut().enumerate() {
-            *q = p[i * l + j];
-        }
-        let pjj = pi[j].re;
-        let s = c / (1.0 + c * pjj);
-        let vj = v[j];
-        for (vi, q) in v.iter_mut().zip(pi.iter()) {
-            *vi -= q * (s * vj);
-        }
-        for i in 0..l {
-            let si = pi[i] * s;
-            p[i * l + i].re -= (si * pi[i].conj()).re;
-            for jj in i + 1..l {
-                let x = p[i * l + jj] - si * pi[jj].conj();
-                p[i * l + jj] = x;
-                p[jj * l + i] = x.conj();
-            }
-        }
+    // Fold the scale back into P before it drifts far from 1.
+    if !(1e-6..=1e6).contains(&sc) {
+        pr.iter_mut().chain(pi.iter_mut()).for_each(|x| *x *= sc);
+        sc = 1.0;
     }
-    let n2: f64 = v.iter().map(|x| x.norm_sqr()).sum();
+    *scale = sc;
+    let n2: f64 = vr.iter().chain(vi.iter()).map(|x| x * x).sum();
     if n2 > step.max_norm2 {
         let s = (step.max_norm2 / n2).sqrt();
-        for x in v.iter_mut() {
-            *x *= s;
-        }
+        vr.iter_mut().chain(vi.iter_mut()).for_each(|x| *x *= s);
     }
-    n2.is_finite() && (0..l).all(|i| p[i * l + i].re > 0.0 && p[i * l + i].re.is_finite())
+    let mut trace = 0.0;
+    let mut smallest = f64::INFINITY;
+    for i in 0..d.l {
+        trace += pr[i * lp + i];
+        smallest = smallest.min(pr[i * lp + i]);
+    }
+    n2.is_finite() && (trace * sc).is_finite() && smallest > 0.0 && sc > 0.0
 }
 
 #[cfg(test)]
@@ -146,32 +326,53 @@ mod tests {
         )
     }
 
+    fn split(u: &[Complex], d: Dims) -> (Vec<f64>, Vec<f64>) {
+        let mut r = vec![0.0; d.lp];
+        let mut i = vec![0.0; d.lp];
+        for (k, x) in u.iter().enumerate() {
+            r[k] = x.re;
+            i[k] = x.im;
+        }
+        (r, i)
+    }
+
     #[test]
     fn converges_to_the_wiener_solution() {
-        let l = 3;
+        let d = Dims::new(3);
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let truth = [
             Complex::new(0.5, -0.2),
             Complex::new(-0.1, 0.3),
             Complex::new(0.0, 0.7),
         ];
-        let mut v = vec![Complex::new(0.0, 0.0); l];
-        let mut p = vec![Complex::new(0.0, 0.0); l * l];
-        let mut pi = vec![Complex::new(0.0, 0.0); l];
-        reset(&mut v, &mut p, l, 1e-2, 0.66);
+        let mut st = vec![0.0; d.stride()];
+        let mut scratch = vec![0.0; 2 * d.lp];
+        reset(&mut st, d, 1e-2, 0.66);
         let step = RlsStep {
             forgetting: 0.99,
             leakage: 1e-4,
             max_norm2: 1e6,
         };
         for n in 0..2000 {
-            let u: Vec<Complex> = (0..l).map(|_| cn(&mut rng)).collect();
-            let d: Complex = truth.iter().zip(&u).map(|(w, u)| w.conj() * u).sum();
-            let e = output(&v, &u, d);
+            let u: Vec<Complex> = (0..d.l).map(|_| cn(&mut rng)).collect();
+            let fixed: Complex = truth.iter().zip(&u).map(|(w, u)| w.conj() * u).sum();
+            let (ur, ui) = split(&u, d);
+            let e = output(&st, d, &ur, &ui, fixed);
             assert!(adapt(
-                &mut v, &mut p, l, &u, e, 1.0, 0.66, n, &step, &mut pi
+                &mut st,
+                d,
+                &ur,
+                &ui,
+                e,
+                1.0,
+                0.66,
+                n,
+                &step,
+                &mut scratch
             ));
         }
+        let mut v = vec![Complex::new(0.0, 0.0); d.l];
+        weights(&st, d, &mut v);
         for (a, b) in v.iter().zip(&truth) {
             assert!((a - b).norm() < 1e-2, "{v:?}");
         }
@@ -179,12 +380,11 @@ mod tests {
 
     #[test]
     fn stays_bounded_when_one_direction_is_never_excited() {
-        let l = 4;
+        let d = Dims::new(4);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let mut v = vec![Complex::new(0.0, 0.0); l];
-        let mut p = vec![Complex::new(0.0, 0.0); l * l];
-        let mut pi = vec![Complex::new(0.0, 0.0); l];
-        reset(&mut v, &mut p, l, 1e-2, 1.0);
+        let mut st = vec![0.0; d.stride()];
+        let mut scratch = vec![0.0; 2 * d.lp];
+        reset(&mut st, d, 1e-2, 1.0);
         let step = RlsStep {
             forgetting: 0.95,
             leakage: 1e-3,
@@ -200,45 +400,57 @@ mod tests {
         for n in 0..100_000 {
             let s = cn(&mut rng);
             let u: Vec<Complex> = dir.iter().map(|x| x * s).collect();
-            let d = s * 0.3;
-            let e = output(&v, &u, d);
-            assert!(adapt(&mut v, &mut p, l, &u, e, 1.0, 1.0, n, &step, &mut pi));
+            let (ur, ui) = split(&u, d);
+            let e = output(&st, d, &ur, &ui, s * 0.3);
+            assert!(adapt(
+                &mut st,
+                d,
+                &ur,
+                &ui,
+                e,
+                1.0,
+                1.0,
+                n,
+                &step,
+                &mut scratch
+            ));
         }
-        let tr: f64 = (0..l).map(|i| p[i * l + i].re).sum();
+        let tr = inverse_correlation_trace(&st, d);
         assert!(tr.is_finite() && tr < 1e6, "P grew to trace {tr}");
         // Still cancels the excited direction.
         let s = Complex::new(0.7, -0.2);
         let u: Vec<Complex> = dir.iter().map(|x| x * s).collect();
-        assert!(output(&v, &u, s * 0.3).norm() < 0.02 * (s * 0.3).norm());
+        let (ur, ui) = split(&u, d);
+        assert!(output(&st, d, &ur, &ui, s * 0.3).norm() < 0.02 * (s * 0.3).norm());
     }
 
     #[test]
     fn zero_weight_freezes_the_state() {
-        let l = 2;
-        let mut v = vec![Complex::new(0.1, 0.0); l];
-        let mut p = vec![Complex::new(0.0, 0.0); l * l];
-        reset(&mut vec![Complex::new(0.0, 0.0); l], &mut p, l, 1.0, 1.0);
-        let (v0, p0) = (v.clone(), p.clone());
+        let d = Dims::new(2);
+        let mut st = vec![0.0; d.stride()];
+        reset(&mut st, d, 1.0, 1.0);
+        st[0] = 0.1;
+        let before = st.clone();
         let step = RlsStep {
             forgetting: 0.9,
             leakage: 1e-3,
             max_norm2: 1e6,
         };
-        let u = [Complex::new(1.0, 2.0), Complex::new(-1.0, 0.5)];
-        let mut pi = vec![Complex::new(0.0, 0.0); l];
+        let (ur, ui) = split(&[Complex::new(1.0, 2.0), Complex::new(-1.0, 0.5)], d);
+        let mut scratch = vec![0.0; 2 * d.lp];
+        let e = Complex::new(3.0, 0.0);
         assert!(adapt(
-            &mut v,
-            &mut p,
-            l,
-            &u,
-            Complex::new(3.0, 0.0),
+            &mut st,
+            d,
+            &ur,
+            &ui,
+            e,
             0.0,
             1.0,
             0,
             &step,
-            &mut pi
+            &mut scratch
         ));
-        assert_eq!(v, v0);
-        assert_eq!(p, p0);
+        assert_eq!(st, before);
     }
 }

@@ -53,7 +53,9 @@ struct Work {
     bf: Vec<Complex>,
     beta: Vec<f64>,
     u: Vec<Complex>,
-    pi: Vec<Complex>,
+    ur: Vec<f64>,
+    ui: Vec<f64>,
+    scratch: Vec<f64>,
     blocking: Blocking,
     mat: Vec<Complex>,
     w: Vec<Complex>,
@@ -317,7 +319,10 @@ impl Separator {
         let w = &mut self.work;
         w.y.resize(bins * self.channels, Complex::new(0.0, 0.0));
         w.u.resize(maxm, Complex::new(0.0, 0.0));
-        w.pi.resize(maxm, Complex::new(0.0, 0.0));
+        let lp = rls::Dims::new(maxm).lp;
+        w.ur.resize(lp, 0.0);
+        w.ui.resize(lp, 0.0);
+        w.scratch.resize(2 * lp, 0.0);
         w.mat.resize(maxm * maxm, Complex::new(0.0, 0.0));
         w.w.resize(maxm, Complex::new(0.0, 0.0));
         w.w2.resize(maxm, Complex::new(0.0, 0.0));
@@ -595,33 +600,38 @@ impl Separator {
         let out = match kind {
             BeamformerKind::DelayAndSum | BeamformerKind::NullSteering => d,
             BeamformerKind::Gsc => {
-                let l = m - 1;
+                let dims = s.rls_dims;
+                let l = dims.l;
                 w.blocking.set(a);
-                w.blocking.apply(y, &mut w.u[..l]);
-                let st = &mut s.adaptive[k * s.stride..(k + 1) * s.stride];
-                let (v, p) = st.split_at_mut(l);
-                let e = rls::output(v, &w.u[..l], d);
+                // The padding must be zero (another group may have left values there).
+                w.ur[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
+                w.ui[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
+                w.blocking.apply_split(y, &mut w.ur[..l], &mut w.ui[..l]);
+                let stride = dims.stride();
+                let st = &mut s.rls[k * stride..(k + 1) * stride];
+                let e = rls::output(st, dims, &w.ur, &w.ui, d);
+                if self.record {
+                    // Effective weights W - B V with the weights that made this output.
+                    rls::weights(st, dims, &mut w.u[..l]);
+                    w.blocking.combine(&w.u[..l], &mut w.w2[..m]);
+                }
                 let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
                 let step = RlsStep {
                     forgetting: self.cfg.rls.forgetting,
                     leakage: self.cfg.rls.leakage,
                     max_norm2: self.cfg.rls.max_norm_ratio.powi(2) / an.max(1e-300),
                 };
-                if self.record {
-                    // Effective weights W - B V with the weights that made this output.
-                    w.blocking.combine(v, &mut w.w2[..m]);
-                }
                 let ok = rls::adapt(
-                    v,
-                    p,
-                    l,
-                    &w.u[..l],
+                    st,
+                    dims,
+                    &w.ur,
+                    &w.ui,
                     e,
                     w.beta[i],
                     power,
-                    s.leak_index,
+                    s.leak_index.wrapping_add(k),
                     &step,
-                    &mut w.pi[..l],
+                    &mut w.scratch,
                 );
                 if !ok {
                     s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);

@@ -27,9 +27,12 @@ pub(super) struct Stream {
     pub power: f64,
     /// Steering toward this label on every microphone group (only active groups are current).
     pub steering: Vec<Steering>,
-    /// Adaptive state, `stride` values per bin: RLS V then P for the GSC, R for the MVDR.
+    /// MVDR covariance, `stride` values per bin.
     pub adaptive: Vec<Complex>,
     pub stride: usize,
+    /// GSC canceller state, `rls_dims.stride()` values per bin.
+    pub rls: Vec<f64>,
+    pub rls_dims: rls::Dims,
     /// The adaptive state must be (re)initialised before the next frame.
     pub needs_reset: bool,
     /// Smoothed fixed-beamformer power per bin (per-bin adaptation control).
@@ -59,6 +62,8 @@ impl Stream {
             steering: vec![Steering::default(); groups],
             adaptive: Vec::new(),
             stride: 0,
+            rls: Vec::new(),
+            rls_dims: rls::Dims::new(0),
             needs_reset: true,
             fixed_power: Vec::new(),
             post: Vec::new(),
@@ -71,19 +76,29 @@ impl Stream {
     /// Sizes the per-bin state for `bins` bins and an `m`-microphone group; any change of shape
     /// (or an explicit request) resets it.
     pub fn fit(&mut self, kind: BeamformerKind, bins: usize, m: usize, groups: usize) {
-        let stride = match kind {
-            BeamformerKind::Gsc => (m - 1) + (m - 1) * (m - 1),
-            BeamformerKind::Mvdr => m * m,
-            BeamformerKind::NullSteering | BeamformerKind::DelayAndSum => 0,
+        let stride = if kind == BeamformerKind::Mvdr {
+            m * m
+        } else {
+            0
         };
-        if self.stride != stride || self.fixed_power.len() != bins {
+        let dims = if kind == BeamformerKind::Gsc {
+            rls::Dims::new(m - 1)
+        } else {
+            rls::Dims::new(0)
+        };
+        if self.stride != stride || self.rls_dims != dims || self.fixed_power.len() != bins {
             self.stride = stride;
+            self.rls_dims = dims;
             self.needs_reset = true;
         }
         self.steering.resize(groups, Steering::default());
         if self.needs_reset {
             self.adaptive.clear();
             self.adaptive.resize(stride * bins, Complex::new(0.0, 0.0));
+            self.rls.clear();
+            if kind == BeamformerKind::Gsc {
+                self.rls.resize(dims.stride() * bins, 0.0);
+            }
             self.fixed_power.clear();
             self.fixed_power.resize(bins, 0.0);
             self.post.clear();
@@ -93,10 +108,6 @@ impl Stream {
 
     /// Initialises the adaptive state of every bin from the input power per bin.
     pub fn reset_adaptive(&mut self, kind: BeamformerKind, m: usize, delta: f64, psd: &[f64]) {
-        if self.stride == 0 {
-            self.needs_reset = false;
-            return;
-        }
         for (k, &power) in psd.iter().enumerate() {
             self.reset_bin(kind, m, k, delta, power);
         }
@@ -105,18 +116,16 @@ impl Stream {
 
     /// Initialises the adaptive state of bin `k`.
     pub fn reset_bin(&mut self, kind: BeamformerKind, m: usize, k: usize, delta: f64, power: f64) {
-        let s = self.stride;
-        if s == 0 {
-            return;
-        }
-        let state = &mut self.adaptive[k * s..(k + 1) * s];
         match kind {
             BeamformerKind::Gsc => {
-                let l = m - 1;
-                let (v, p) = state.split_at_mut(l);
-                rls::reset(v, p, l, delta, power);
+                let d = self.rls_dims;
+                let st = d.stride();
+                rls::reset(&mut self.rls[k * st..(k + 1) * st], d, delta, power);
             }
-            BeamformerKind::Mvdr => super::mvdr::reset(state, m, power),
+            BeamformerKind::Mvdr => {
+                let s = self.stride;
+                super::mvdr::reset(&mut self.adaptive[k * s..(k + 1) * s], m, power);
+            }
             BeamformerKind::NullSteering | BeamformerKind::DelayAndSum => {}
         }
     }

@@ -1,0 +1,119 @@
+//! Speed of the separator: one hop (1024-sample frame, 512 hop, 16 kHz) with 8 microphones and 3
+//! labels, post-filter on, for each beamformer.
+
+use std::hint::black_box;
+
+use avsep::dsp::{Complex, MultiSpectrum};
+use avsep::geometry::{Layout, MicArray, Vec3};
+use avsep::label::Label;
+use avsep::separate::{Separator, SeparatorConfig, Target};
+use criterion::{Criterion, criterion_group};
+
+fn layout() -> Layout {
+    let mics = (0..8)
+        .map(|i| {
+            let a = 2.0 * std::f64::consts::PI * i as f64 / 8.0;
+            Vec3::new(0.05 * a.cos(), 0.05 * a.sin(), 1.2)
+        })
+        .collect();
+    let arr = MicArray::new("a0", mics, (0..8).collect()).unwrap();
+    Layout::new(16000, 343.0, vec![arr], vec![], None).unwrap()
+}
+
+/// Random-phase spectra (a new frame each call, so nothing is cached between frames).
+fn frames(count: usize, bins: usize) -> Vec<MultiSpectrum> {
+    let mut s = 7u64;
+    let mut rnd = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    (0..count)
+        .map(|_| {
+            let mut m = MultiSpectrum::zeros(8, bins);
+            for c in 0..8 {
+                for v in m.channel_mut(c) {
+                    *v = Complex::new(rnd(), rnd());
+                }
+            }
+            m
+        })
+        .collect()
+}
+
+fn targets(frame: usize, speaking: f64) -> Vec<Target> {
+    // Slowly moving talkers: the steering is recomputed every frame, as in the pipeline.
+    let d = 0.001 * frame as f64;
+    [(1.5, 0.3), (-0.8, 1.2), (-0.5, -1.5)]
+        .iter()
+        .enumerate()
+        .map(|(i, (x, y))| Target {
+            label: Label::new(0, i as u32),
+            position: Vec3::new(x + d, y - d, 1.6),
+            direction_only: false,
+            speaking,
+            activity: 1.0,
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let layout = layout();
+    for (name, json, speaking) in [
+        ("gsc_adapting", r#"{}"#, 0.0),
+        ("gsc_frozen", r#"{}"#, 1.0),
+        (
+            "gsc_mask_bf",
+            r#"{"post_filter": {"kind": "mask", "apply_to": "beamformer_output"}}"#,
+            0.0,
+        ),
+        ("mvdr", r#"{"beamformer": "mvdr"}"#, 0.0),
+        ("null_steering", r#"{"beamformer": "null_steering"}"#, 0.0),
+        ("delay_and_sum", r#"{"beamformer": "delay_and_sum"}"#, 0.0),
+    ] {
+        let cfg: SeparatorConfig = serde_json::from_str(json).unwrap();
+        let mut sep = Separator::new(&layout, &cfg).unwrap();
+        let input = frames(64, sep.frame_geometry().bins());
+        let mut out = Vec::new();
+        let mut f = 0usize;
+        // Warm up past the fade-in so every label runs at full strength.
+        for _ in 0..10 {
+            sep.process_into(&input[f % 64], &targets(f, speaking), &mut out);
+            f += 1;
+        }
+        c.bench_function(&format!("separate/hop_8mics_3labels/{name}"), |b| {
+            b.iter(|| {
+                let t = targets(f, speaking);
+                sep.process_into(black_box(&input[f % 64]), &t, &mut out);
+                f += 1;
+                black_box(&out);
+            })
+        });
+    }
+}
+
+criterion_group!(benches, bench);
+
+/// `AVSEP_SEPARATE_ITERS=n` runs n hops of the default (adapting GSC) without criterion, for
+/// measuring CPU time with `perf stat` on a loaded machine.
+fn main() {
+    if let Some(n) = std::env::var("AVSEP_SEPARATE_ITERS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        let json = std::env::var("AVSEP_SEPARATE_CONFIG").unwrap_or_else(|_| "{}".into());
+        let cfg: SeparatorConfig = serde_json::from_str(&json).unwrap();
+        let mut sep = Separator::new(&layout(), &cfg).unwrap();
+        let input = frames(64, sep.frame_geometry().bins());
+        let ts: Vec<Vec<Target>> = (0..64).map(|f| targets(f, 0.0)).collect();
+        let mut out = Vec::new();
+        for f in 0..n {
+            sep.process_into(black_box(&input[f % 64]), &ts[f % 64], &mut out);
+            black_box(&out);
+        }
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}
