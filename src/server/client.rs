@@ -84,9 +84,14 @@ pub async fn http(
     }
     head.push_str("\r\n");
     tcp.write_all(head.as_bytes()).await.map_err(cerr)?;
-    tcp.write_all(body).await.map_err(cerr)?;
+    // A server may answer (413) and close before reading the whole body: read its answer anyway.
+    let wrote = tcp.write_all(body).await;
     let mut raw = Vec::new();
-    tcp.read_to_end(&mut raw).await.map_err(cerr)?;
+    let read = tcp.read_to_end(&mut raw).await;
+    if raw.is_empty() {
+        wrote.map_err(cerr)?;
+        read.map_err(cerr)?;
+    }
     parse_response(&raw)
 }
 
@@ -405,12 +410,14 @@ pub async fn stream_feed(
         .map_err(|_| ClientError(format!("no end of stream within {:?}", opts.timeout)))?
 }
 
-/// Listens to a session without sending input, until it closes the stream.
+/// Listens to a session without sending input, until it closes the stream; `ready` is told
+/// once the welcome has arrived (from then on nothing the session produces is missed).
 pub async fn listen(
     url: &str,
     token: &str,
     outputs: OutputSelection,
     timeout: Duration,
+    ready: Option<tokio::sync::oneshot::Sender<()>>,
 ) -> Result<Received, ClientError> {
     let mut ws = connect(url, token).await?;
     let hello = ClientMessage::Hello {
@@ -422,7 +429,11 @@ pub async fn listen(
         .map_err(cerr)?;
     let mut got = Received::default();
     let run = async {
+        let mut ready = ready;
         while let Some(m) = ws.next().await {
+            if let Some(r) = ready.take() {
+                let _ = r.send(());
+            }
             if !got.take(m.map_err(cerr)?) {
                 break;
             }

@@ -92,6 +92,8 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
     }
     loop {
         tokio::select! {
+            // Inbound first, so a hello sent before any output is in effect for that output.
+            biased;
             msg = inbound.next() => {
                 let reply = match msg {
                     Some(Ok(Message::Binary(bytes))) => on_audio(&session, me, &bytes),
