@@ -14,4 +14,5 @@ pub mod pipeline;
 pub mod protocol;
 pub mod scene;
 pub mod separate;
+pub mod server;
 pub mod track;

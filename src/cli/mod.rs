@@ -3,8 +3,10 @@
 
 mod config;
 mod eval;
+mod loadgen;
 mod process;
 mod progress;
+mod serve;
 mod simulate;
 
 use std::process::ExitCode;
@@ -33,6 +35,10 @@ pub enum Command {
     Eval(eval::EvalArgs),
     /// Print the pipeline configuration (defaults, or a file merged over them).
     Config(config::ConfigArgs),
+    /// Host sessions: REST API under /v1 and WebSocket streams (see api/).
+    Serve(serve::ServeArgs),
+    /// Load-test a running server with N concurrent simulated sessions.
+    Loadgen(loadgen::LoadgenArgs),
 }
 
 /// A command failure with its exit code: 2 for bad input (arguments, scenes, configuration),
@@ -76,13 +82,19 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Process(a) => process::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Config(a) => config::run(a),
+        Command::Serve(a) => serve::run(a),
+        Command::Loadgen(a) => loadgen::run(a),
     }
 }
 
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
-    init_logging();
     let cli = Cli::parse();
+    match &cli.command {
+        // A server logs what it does; JSON lines on request.
+        Command::Serve(a) => init_logging("info", a.log_json),
+        _ => init_logging("warn", false),
+    }
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -92,11 +104,9 @@ pub fn main() -> ExitCode {
     }
 }
 
-fn init_logging() {
+fn init_logging(default_level: &str, json: bool) {
     use tracing_subscriber::EnvFilter;
-    let filter = EnvFilter::try_from_env("AVSEP_LOG").unwrap_or_else(|_| EnvFilter::new("warn"));
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .try_init();
+    let filter = EnvFilter::try_from_env("AVSEP_LOG").unwrap_or_else(|_| EnvFilter::new(default_level));
+    let fmt = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr);
+    let _ = if json { fmt.json().try_init() } else { fmt.try_init() };
 }

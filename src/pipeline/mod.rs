@@ -20,4 +20,4 @@ pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, Pip
 pub use events::PipelineEvent;
 pub use input::InputError;
 pub use sensor_queue::SensorQueue;
-pub use session::{Pipeline, PipelineStats};
+pub use session::{LIVE_SETTINGS, Pipeline, PipelineStats};

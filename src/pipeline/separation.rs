@@ -62,6 +62,14 @@ impl SeparationDriver {
         self.separator.set_layout(layout).map_err(sep_err)
     }
 
+    /// New separator settings with the same framing (labels and streams are kept).
+    pub fn set_config(&mut self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
+        if cfg.frame_geometry() != self.geometry {
+            return Err(ConfigError::new("separate.frame", "the STFT framing cannot change on a running session"));
+        }
+        self.separator.set_config(cfg).map_err(sep_err)
+    }
+
     /// Processes every frame whose window ends at or before `end_sample`, with targets at each
     /// frame's centre time.
     pub fn run_until(

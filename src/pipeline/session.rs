@@ -462,11 +462,83 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Applies new settings to a running pipeline, keeping its tracks. Only what tunes a stage
+    /// can change ([`LIVE_SETTINGS`]: the camera wait, box score threshold, gap bridging, use of
+    /// cameras, the tracker's sensor models and the separator except its framing); anything else
+    /// shapes a stage when it is built and is refused, naming the first such field.
+    pub fn update_config(&mut self, cfg: PipelineConfig) -> Result<(), ConfigError> {
+        cfg.validate()?;
+        let as_value = |c: &PipelineConfig| serde_json::to_value(c).map_err(|e| ConfigError::new("", e.to_string()));
+        let mut changed = Vec::new();
+        changed_fields(&as_value(&self.cfg)?, &as_value(&cfg)?, "", &mut changed);
+        let live = |f: &str| {
+            !matches!(f, "separate.frame" | "separate.hop")
+                && LIVE_SETTINGS.iter().any(|p| f == *p || f.strip_prefix(p).is_some_and(|r| r.starts_with('.')))
+        };
+        if let Some(f) = changed.iter().find(|f| !live(f)) {
+            return Err(ConfigError::new(
+                f.clone(),
+                "cannot change on a running session (it shapes a stage when the session is created)",
+            ));
+        }
+        if changed.iter().any(|f| f.starts_with("track.")) {
+            cfg.track.validate().map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+            if let TrackSource::Tracker { tracker, .. } = &mut self.source {
+                let models = sensors_from_layout(&self.layout, &cfg.track).into_iter().map(|(_, m)| m).collect();
+                tracker.set_sensors(models).map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+            }
+        }
+        if changed.iter().any(|f| f.starts_with("separate."))
+            && let Some(sep) = self.separation.as_mut()
+        {
+            sep.set_config(&cfg.separate)?;
+        }
+        self.cfg = cfg;
+        Ok(())
+    }
+
     /// Keys of the tracker's sensors, in sensor-index order (for diagnostics).
     pub fn sensor_keys(&self) -> Vec<SensorKey> {
         match &self.source {
             TrackSource::Tracker { routes, .. } => routes.keys().to_vec(),
             TrackSource::Oracle(_) => Vec::new(),
         }
+    }
+}
+
+/// Settings (dotted paths, with everything below them) that [`Pipeline::update_config`] can change
+/// on a running pipeline; `separate.frame` and `separate.hop` are excluded.
+pub const LIVE_SETTINGS: &[&str] = &[
+    "camera_wait_s",
+    "min_box_score",
+    "max_gap_s",
+    "cameras",
+    "track.audio_position",
+    "track.audio_direction",
+    "track.camera.noise_std_px",
+    "track.camera.reference_height_px",
+    "track.camera.p_detect",
+    "track.camera.clutter_rate",
+    "track.camera.filter",
+    "separate",
+];
+
+/// Dotted paths of the leaves where two settings documents differ.
+fn changed_fields(old: &serde_json::Value, new: &serde_json::Value, path: &str, out: &mut Vec<String>) {
+    match (old, new) {
+        (serde_json::Value::Object(a), serde_json::Value::Object(b)) => {
+            for (key, va) in a {
+                let p = if path.is_empty() { key.clone() } else { format!("{path}.{key}") };
+                match b.get(key) {
+                    Some(vb) => changed_fields(va, vb, &p, out),
+                    None => out.push(p),
+                }
+            }
+            for key in b.keys().filter(|k| !a.contains_key(*k)) {
+                out.push(if path.is_empty() { key.clone() } else { format!("{path}.{key}") });
+            }
+        }
+        (a, b) if a != b => out.push(path.to_string()),
+        _ => {}
     }
 }

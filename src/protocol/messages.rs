@@ -69,10 +69,13 @@ pub enum ClientMessage {
     },
     /// Directions or positions measured by a device that localises itself.
     AudioMeasurements(AudioMeasurementLine),
+    /// The input has ended: the session processes what it holds, flushes the separated audio,
+    /// and closes every stream (state `finished`).
+    Finish {},
 }
 
 /// Body of an error, also used by the REST API (`{"error": {...}}`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, utoipa::ToSchema)]
 pub struct ErrorBody {
     /// Machine-readable reason, e.g. `time_backwards`.
     pub code: String,
@@ -132,6 +135,18 @@ pub enum ServerMessage {
         next_sample: u64,
         /// Tracker step period (s).
         step_s: f64,
+        /// Separated audio lags the input by at most one step plus this many samples.
+        #[serde(default)]
+        audio_delay_samples: u64,
+        /// Messages the session queues before refusing input with `queue_full`.
+        #[serde(default)]
+        queue_depth: usize,
+        /// Most samples (frames x channels) one binary audio message may carry.
+        #[serde(default)]
+        max_audio_samples: usize,
+        /// Largest message (bytes) the server accepts.
+        #[serde(default)]
+        max_message_bytes: usize,
     },
     /// The tracker's estimate after one step.
     Tracks {
@@ -186,6 +201,8 @@ mod tests {
         .unwrap();
         assert!(matches!(m, ClientMessage::AudioMeasurements(_)));
         assert!(serde_json::from_str::<ClientMessage>(r#"{"type":"hello","bogus":1}"#).is_err());
+        let f: ClientMessage = serde_json::from_str(r#"{"type":"finish"}"#).unwrap();
+        assert_eq!(f, ClientMessage::Finish {});
     }
 
     #[test]

@@ -2,7 +2,12 @@
 //! applied to them before they reach a pipeline. Nothing here touches sockets.
 
 pub mod audio_frame;
+pub mod inbound;
 pub mod messages;
+pub mod rest;
+pub mod schema;
 
 pub use audio_frame::{AudioFrame, FrameError, LabelAudioFrame, SampleEncoding};
-pub use messages::{ClientMessage, ErrorBody, OutputSelection, ServerMessage, SessionEvent};
+pub use messages::{
+    AudioSelection, ClientMessage, ErrorBody, OutputSelection, ServerMessage, SessionEvent,
+};

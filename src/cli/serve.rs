@@ -1,0 +1,123 @@
+//! `avsep serve`: hosts sessions behind the REST API and the WebSocket stream until ctrl-c or
+//! SIGTERM, then drains them (pipelines finish, streams close with a close frame).
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use super::CliError;
+use crate::pipeline::config_doc::documented_toml;
+use crate::server::{Server, ServerConfig};
+
+/// Arguments of `avsep serve`. Flags override environment variables, which override the file.
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// Server settings (TOML or JSON); see `avsep serve --print-config`.
+    #[arg(long, env = "AVSEP_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// Address and port to listen on [default: 127.0.0.1:8080].
+    #[arg(long, env = "AVSEP_BIND")]
+    pub bind: Option<String>,
+    /// Admin key guarding session creation, listing and deletion (at least 16 characters).
+    #[arg(long, env = "AVSEP_ADMIN_KEY", hide_env_values = true)]
+    pub admin_key: Option<String>,
+    /// Origins allowed to call the API from browsers, comma-separated (`*` for any).
+    #[arg(long, env = "AVSEP_CORS_ORIGINS", value_delimiter = ',')]
+    pub cors_origins: Option<Vec<String>>,
+    /// Most sessions held at once.
+    #[arg(long, env = "AVSEP_MAX_SESSIONS")]
+    pub max_sessions: Option<usize>,
+    /// Inbound messages queued per session before `queue_full`.
+    #[arg(long, env = "AVSEP_QUEUE_DEPTH")]
+    pub queue_depth: Option<usize>,
+    /// Log as JSON lines (for log collectors) instead of text.
+    #[arg(long, env = "AVSEP_LOG_JSON")]
+    pub log_json: bool,
+    /// Print the settings in force (documented TOML) and exit.
+    #[arg(long)]
+    pub print_config: bool,
+}
+
+impl ServeArgs {
+    /// The settings: file, then environment and flags over it.
+    pub fn settings(&self) -> Result<ServerConfig, CliError> {
+        let mut cfg = match &self.config {
+            Some(p) => {
+                let text = std::fs::read_to_string(p)
+                    .map_err(|e| CliError::input(format!("{}: cannot read: {e}", p.display())))?;
+                ServerConfig::parse(&text)
+                    .map_err(|e| CliError::input(format!("{}: {e}", p.display())))?
+            }
+            None => ServerConfig::default(),
+        };
+        if let Some(b) = &self.bind {
+            cfg.bind = b.clone();
+        }
+        if let Some(k) = &self.admin_key {
+            cfg.admin_key = Some(k.clone());
+        }
+        if let Some(o) = &self.cors_origins {
+            cfg.cors_origins = o.clone();
+        }
+        if let Some(n) = self.max_sessions {
+            cfg.limits.max_sessions = n;
+        }
+        if let Some(n) = self.queue_depth {
+            cfg.limits.queue_depth = n;
+        }
+        cfg.validate().map_err(CliError::input)?;
+        Ok(cfg)
+    }
+}
+
+/// Resolves on ctrl-c or SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        _ = ctrl_c => {},
+        _ = term => {},
+    }
+}
+
+/// Runs the command.
+pub fn run(args: ServeArgs) -> Result<(), CliError> {
+    let cfg = args.settings()?;
+    if args.print_config {
+        let mut shown = cfg.clone();
+        if shown.admin_key.is_some() {
+            shown.admin_key = Some("<hidden>".into());
+        }
+        println!("{}", documented_toml(&shown).map_err(CliError::runtime)?.trim_end());
+        return Ok(());
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .thread_name("avsep-io")
+        .build()
+        .map_err(CliError::runtime)?;
+    runtime.block_on(async {
+        let server = Server::bind(cfg.clone())
+            .await
+            .map_err(|e| CliError::input(format!("cannot listen on {}: {e}", cfg.bind)))?;
+        let addr = server.local_addr().map_err(CliError::runtime)?;
+        tracing::info!(%addr, admin_key = cfg.admin_key.is_some(), "avsep serving");
+        // Scripts and tests read the address from stdout (the port may have been 0).
+        println!("listening on http://{addr}");
+        server.run(shutdown_signal()).await.map_err(CliError::runtime)
+    })?;
+    tracing::info!("stopped");
+    Ok(())
+}

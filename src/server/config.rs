@@ -1,0 +1,192 @@
+//! Settings of `avsep serve`: where to listen, who may do what, and every limit that bounds a
+//! session's memory and work. Read from a TOML or JSON file; environment variables and flags
+//! override single fields (see `cli/serve.rs`).
+
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::pipeline::ConfigError;
+
+/// Server settings. Every field has a default; unknown fields are errors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct ServerConfig {
+    /// Address and port to listen on. The default listens on this machine only.
+    pub bind: String,
+    /// Key that guards creating, listing and deleting sessions and opens every session's
+    /// endpoints (`Authorization: Bearer <key>`). When absent anyone who can reach the server may
+    /// create and list sessions, and each session is guarded by its own token only.
+    pub admin_key: Option<String>,
+    /// Origins allowed to call the API from a browser (`["*"]` for any); none when empty.
+    pub cors_origins: Vec<String>,
+    /// Seconds the server waits at shutdown for sessions to finish their pipelines.
+    pub drain_timeout_s: f64,
+    /// Limits that bound memory and work.
+    pub limits: Limits,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        Self {
+            bind: "127.0.0.1:8080".into(),
+            admin_key: None,
+            cors_origins: Vec::new(),
+            drain_timeout_s: 10.0,
+            limits: Limits::default(),
+        }
+    }
+}
+
+/// Explicit bounds on sessions, clients, messages and queues.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct Limits {
+    /// Sessions the server holds at once (running or finished but not yet deleted).
+    pub max_sessions: usize,
+    /// Stream clients connected to one session at once.
+    pub max_clients_per_session: usize,
+    /// Samples (frames x channels) one binary audio message may carry.
+    pub max_audio_samples: usize,
+    /// Largest WebSocket message (bytes).
+    pub max_message_bytes: usize,
+    /// Largest REST request body (bytes).
+    pub max_body_bytes: usize,
+    /// Inbound messages a session queues for its pipeline; more are refused with `queue_full`.
+    pub queue_depth: usize,
+    /// Output messages buffered for each stream client; a client that falls further behind
+    /// skips ahead and is told how many it missed (`output_dropped`).
+    pub output_buffer: usize,
+    /// Tracker steps kept in a session's track history.
+    pub history_steps: usize,
+    /// Seconds a finished or failed session stays readable before it is removed.
+    pub finished_ttl_s: f64,
+    /// Seconds a REST call waits for the session's pipeline to apply a change.
+    pub control_timeout_s: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self {
+            max_sessions: 64,
+            max_clients_per_session: 8,
+            max_audio_samples: 8 * 4096,
+            max_message_bytes: 1 << 20,
+            max_body_bytes: 256 << 10,
+            queue_depth: 64,
+            output_buffer: 1024,
+            history_steps: 2048,
+            finished_ttl_s: 600.0,
+            control_timeout_s: 5.0,
+        }
+    }
+}
+
+impl ServerConfig {
+    /// Parses a JSON or TOML file's text (TOML unless it starts with `{`), naming unknown or
+    /// mistyped fields.
+    pub fn parse(text: &str) -> Result<Self, ConfigError> {
+        let cfg: Self = if text.trim_start().starts_with('{') {
+            let de = &mut serde_json::Deserializer::from_str(text);
+            serde_path_to_error::deserialize(de)
+                .map_err(|e| ConfigError::new(e.path().to_string(), e.inner().to_string()))?
+        } else {
+            let de =
+                toml::Deserializer::parse(text).map_err(|e| ConfigError::new("", e.to_string()))?;
+            serde_path_to_error::deserialize(de).map_err(|e| {
+                ConfigError::new(e.path().to_string(), e.inner().message().to_string())
+            })?
+        };
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Checks every field; the error names the first bad one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.bind.parse::<std::net::SocketAddr>().is_err() {
+            return Err(ConfigError::new(
+                "bind",
+                format!("{:?} is not an ADDRESS:PORT such as 127.0.0.1:8080", self.bind),
+            ));
+        }
+        if let Some(k) = &self.admin_key
+            && k.len() < 16
+        {
+            return Err(ConfigError::new(
+                "admin_key",
+                "must be at least 16 characters long",
+            ));
+        }
+        if !(0.0..=600.0).contains(&self.drain_timeout_s) {
+            return Err(ConfigError::new("drain_timeout_s", "must be in 0..=600 s"));
+        }
+        let l = &self.limits;
+        let positive = [
+            ("limits.max_sessions", l.max_sessions),
+            ("limits.max_clients_per_session", l.max_clients_per_session),
+            ("limits.max_audio_samples", l.max_audio_samples),
+            ("limits.max_message_bytes", l.max_message_bytes),
+            ("limits.max_body_bytes", l.max_body_bytes),
+            ("limits.queue_depth", l.queue_depth),
+            ("limits.output_buffer", l.output_buffer),
+            ("limits.history_steps", l.history_steps),
+        ];
+        if let Some((field, _)) = positive.iter().find(|(_, v)| *v == 0) {
+            return Err(ConfigError::new(*field, "must be at least 1"));
+        }
+        let frame_bytes = crate::protocol::audio_frame::AUDIO_IN_HEADER + 4 * l.max_audio_samples;
+        if l.max_message_bytes < frame_bytes {
+            return Err(ConfigError::new(
+                "limits.max_message_bytes",
+                format!(
+                    "must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"
+                ),
+            ));
+        }
+        if !(l.finished_ttl_s >= 0.0 && l.finished_ttl_s.is_finite()) {
+            return Err(ConfigError::new(
+                "limits.finished_ttl_s",
+                "must be a finite number of seconds >= 0",
+            ));
+        }
+        if !(l.control_timeout_s > 0.0 && l.control_timeout_s <= 600.0) {
+            return Err(ConfigError::new(
+                "limits.control_timeout_s",
+                "must be in (0, 600] s",
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_listen_locally() {
+        let c = ServerConfig::default();
+        c.validate().unwrap();
+        assert!(c.bind.starts_with("127.0.0.1:"));
+        assert!(c.admin_key.is_none() && c.cors_origins.is_empty());
+    }
+
+    #[test]
+    fn files_parse_and_errors_name_the_field() {
+        let c = ServerConfig::parse("bind = \"0.0.0.0:9000\"\n[limits]\nqueue_depth = 8\n").unwrap();
+        assert_eq!((c.bind.as_str(), c.limits.queue_depth), ("0.0.0.0:9000", 8));
+        assert_eq!(c.limits.max_sessions, Limits::default().max_sessions);
+        let c = ServerConfig::parse(r#"{"limits": {"max_sessions": 3}}"#).unwrap();
+        assert_eq!(c.limits.max_sessions, 3);
+
+        let e = ServerConfig::parse("[limits]\nqueue_dept = 8\n").unwrap_err();
+        assert!(e.message.contains("queue_dept"), "{e}");
+        let e = ServerConfig::parse(r#"{"limits": {"queue_depth": 0}}"#).unwrap_err();
+        assert_eq!(e.field, "limits.queue_depth");
+        let e = ServerConfig::parse(r#"{"bind": "localhost"}"#).unwrap_err();
+        assert_eq!(e.field, "bind");
+        let e = ServerConfig::parse(r#"{"admin_key": "short"}"#).unwrap_err();
+        assert_eq!(e.field, "admin_key");
+        let e = ServerConfig::parse(r#"{"limits": {"max_message_bytes": 100}}"#).unwrap_err();
+        assert_eq!(e.field, "limits.max_message_bytes");
+    }
+}

@@ -1,0 +1,225 @@
+//! The sessions a server holds: creation from a REST body (geometry and settings checked, the
+//! pipeline built), lookup, removal, expiry of ended sessions, and draining at shutdown.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, RwLock};
+use std::time::{Duration, Instant};
+
+use axum::http::StatusCode;
+
+use crate::pipeline::Pipeline;
+use crate::protocol::rest::{CreateSession, SessionState};
+use crate::scene::convert::layout_from_file;
+use crate::scene::format::{SCENE_FORMAT, SceneFile};
+
+use super::auth;
+use super::config::ServerConfig;
+use super::engine::Engine;
+use super::error::ApiError;
+use super::metrics::{ServerMetrics, Snapshot};
+use super::session::{SessionHandle, SessionSpec};
+
+/// Every session of one server.
+pub struct Registry {
+    sessions: RwLock<BTreeMap<String, SessionHandle>>,
+    config: Arc<ServerConfig>,
+    metrics: Arc<ServerMetrics>,
+    draining: AtomicBool,
+}
+
+impl Registry {
+    /// An empty registry.
+    pub fn new(config: Arc<ServerConfig>, metrics: Arc<ServerMetrics>) -> Self {
+        Self {
+            sessions: RwLock::new(BTreeMap::new()),
+            config,
+            metrics,
+            draining: AtomicBool::new(false),
+        }
+    }
+
+    /// The server's settings.
+    pub fn config(&self) -> &ServerConfig {
+        &self.config
+    }
+
+    /// The server's metrics.
+    pub fn metrics(&self) -> &Arc<ServerMetrics> {
+        &self.metrics
+    }
+
+    /// Whether the server is shutting down.
+    pub fn draining(&self) -> bool {
+        self.draining.load(Ordering::Acquire)
+    }
+
+    /// Sessions held.
+    pub fn len(&self) -> usize {
+        self.sessions.read().map_or(0, |s| s.len())
+    }
+
+    /// Whether no session is held.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn check_capacity(&self) -> Result<(), ApiError> {
+        if self.draining() {
+            return Err(ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "draining",
+                "the server is shutting down",
+            ));
+        }
+        let max = self.config.limits.max_sessions;
+        if self.len() >= max {
+            return Err(ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "at_capacity",
+                format!("the server holds {max} sessions (limits.max_sessions); delete one or use another server"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Creates a session from a REST body: checks the geometry and settings (errors name the
+    /// field), builds the pipeline and starts its worker. Returns the session and its token.
+    /// Building the pipeline takes a while (search grids, filters): call from a blocking task.
+    pub fn create(&self, req: CreateSession) -> Result<(SessionHandle, String), ApiError> {
+        self.check_capacity()?;
+        let scene = SceneFile {
+            format: SCENE_FORMAT.into(),
+            sample_rate: req.sample_rate,
+            speed_of_sound: req.speed_of_sound,
+            audio: None,
+            arrays: req.arrays,
+            cameras: req.cameras,
+            region: req.region,
+            detections: None,
+            audio_measurements: None,
+            truth: None,
+        };
+        let layout = layout_from_file(&scene).map_err(|e| ApiError::geometry(e, ""))?;
+        let settings = req.settings.unwrap_or_default();
+        let id = auth::new_session_id();
+        // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
+        let seed = settings
+            .seed
+            .unwrap_or_else(|| u64::from_str_radix(&id, 16).unwrap_or(0));
+        let pipeline = Pipeline::new(layout.clone(), settings.clone(), seed)
+            .map_err(|e| ApiError::config(e, "settings"))?;
+        let token = auth::new_token();
+        let spec = SessionSpec {
+            id,
+            name: req.name,
+            token: token.clone(),
+            step_s: pipeline.clock().step_s(),
+            audio_delay_samples: pipeline.audio_delay_samples(),
+            layout,
+            settings,
+            limits: self.config.limits.clone(),
+        };
+        let handle = self.insert(spec, pipeline)?;
+        tracing::info!(session = %handle.id(), "session created");
+        Ok((handle, token))
+    }
+
+    /// Starts a session driven by `engine` and registers it.
+    pub fn insert<E: Engine>(&self, spec: SessionSpec, engine: E) -> Result<SessionHandle, ApiError> {
+        self.check_capacity()?;
+        let handle = SessionHandle::start(spec, engine, self.metrics.clone()).map_err(|e| {
+            ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "no_thread",
+                format!("cannot start the session's worker thread: {e}"),
+            )
+        })?;
+        let mut sessions = self
+            .sessions
+            .write()
+            .map_err(|_| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", "registry lock poisoned"))?;
+        if sessions.len() >= self.config.limits.max_sessions {
+            handle.finish("server at capacity");
+            return Err(ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "at_capacity",
+                "the server filled up while the session was being created",
+            ));
+        }
+        sessions.insert(handle.id().to_string(), handle.clone());
+        self.metrics.session_created();
+        Ok(handle)
+    }
+
+    /// The session with this id.
+    pub fn get(&self, id: &str) -> Option<SessionHandle> {
+        self.sessions.read().ok()?.get(id).cloned()
+    }
+
+    /// Every session, oldest first.
+    pub fn list(&self) -> Vec<SessionHandle> {
+        let mut v: Vec<SessionHandle> = self
+            .sessions
+            .read()
+            .map(|s| s.values().cloned().collect())
+            .unwrap_or_default();
+        v.sort_by(|a, b| a.created_unix_s().total_cmp(&b.created_unix_s()));
+        v
+    }
+
+    /// Removes a session; its pipeline finishes what it holds and its streams close with
+    /// `reason`.
+    pub fn remove(&self, id: &str, reason: &str) -> Option<SessionHandle> {
+        let s = self.sessions.write().ok()?.remove(id)?;
+        s.finish(reason);
+        tracing::info!(session = %id, reason, "session removed");
+        Some(s)
+    }
+
+    /// Removes sessions that ended more than `limits.finished_ttl_s` ago.
+    pub fn reap(&self) {
+        let ttl = Duration::from_secs_f64(self.config.limits.finished_ttl_s);
+        let expired: Vec<String> = self
+            .list()
+            .iter()
+            .filter(|s| s.ended().is_some_and(|t| t.elapsed() >= ttl))
+            .map(|s| s.id().to_string())
+            .collect();
+        for id in expired {
+            self.remove(&id, "expired");
+        }
+    }
+
+    /// Gauges for `/metrics`.
+    pub fn snapshot(&self) -> Snapshot {
+        let mut snap = Snapshot::default();
+        for s in self.list() {
+            *snap.sessions.entry(s.state().as_str()).or_default() += 1;
+            snap.clients += s.clients() as i64;
+            let m = s.metrics();
+            snap.queue_depth += m.queue_depth as i64;
+            snap.live_tracks += m.live_tracks as i64;
+        }
+        snap
+    }
+
+    /// Shutdown: refuses new sessions, ends every session's input, and waits (at most
+    /// `timeout`) until their pipelines have flushed and their streams have closed.
+    pub async fn drain(&self, timeout: Duration) {
+        self.draining.store(true, Ordering::Release);
+        let sessions = self.list();
+        for s in &sessions {
+            s.finish("server shutting down");
+        }
+        let deadline = Instant::now() + timeout;
+        let busy = |s: &SessionHandle| {
+            matches!(s.state(), SessionState::Running | SessionState::Finishing) || s.clients() > 0
+        };
+        while Instant::now() < deadline && sessions.iter().any(busy) {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        let left = sessions.iter().filter(|s| busy(s)).count();
+        tracing::info!(sessions = sessions.len(), unfinished = left, "sessions drained");
+    }
+}

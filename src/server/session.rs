@@ -1,0 +1,737 @@
+//! One live session, independent of any transport: a bounded queue into its pipeline's worker
+//! thread, a broadcast of everything the pipeline produces, and what REST reads (state,
+//! calibration, track history, metrics). WebSocket streams, and later Zenoh, attach through
+//! [`SessionHandle`]: `submit` input, `subscribe` to output.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
+use std::sync::{Arc, Mutex, RwLock};
+use std::time::{Duration, Instant};
+
+use tokio::sync::{broadcast, oneshot};
+
+use crate::geometry::Layout;
+use crate::label::Label;
+use crate::pipeline::input::check_audio;
+use crate::pipeline::{ConfigError, InputError, PipelineConfig};
+use crate::protocol::rest::{
+    SessionInfo, SessionMetrics, SessionState, SessionSummary, TrackHistory, TracksSnapshot,
+};
+use crate::protocol::{AudioFrame, ErrorBody, SessionEvent};
+use crate::scene::convert::{array_to_file, camera_to_file};
+use crate::scene::format::{AudioMeasurementLine, RegionFile};
+use crate::scene::{AudioMeasurementFrame, DetectionFrame};
+
+use super::auth;
+use super::config::Limits;
+use super::engine::Engine;
+use super::metrics::{FrameKind, ServerMetrics, SessionCounters};
+use super::worker;
+
+/// Identifies one attached client within its session (errors are addressed to it).
+pub type ClientId = u64;
+
+/// Inbound data for a session's pipeline, already decoded and checked against the layout.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Input {
+    /// Interleaved multichannel audio.
+    Audio(AudioFrame),
+    /// One camera frame.
+    Detections(DetectionFrame),
+    /// One frame of a device that localises itself.
+    AudioMeasurements(AudioMeasurementFrame),
+}
+
+impl Input {
+    fn kind(&self) -> FrameKind {
+        match self {
+            Self::Audio(_) => FrameKind::Audio,
+            Self::Detections(_) => FrameKind::Detections,
+            Self::AudioMeasurements(_) => FrameKind::AudioMeasurements,
+        }
+    }
+}
+
+/// What the pipeline produced, as broadcast to every subscriber.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Output {
+    /// The tracker's estimate after one step.
+    Tracks(TracksSnapshot),
+    /// The localiser's measurements of one array for one step.
+    Measurements(AudioMeasurementLine),
+    /// A chunk of one label's separated audio, aligned with the input's sample indices.
+    Audio {
+        /// Whose voice.
+        label: Label,
+        /// Input sample index of the first sample.
+        first_sample: u64,
+        /// Mono samples.
+        samples: Vec<f32>,
+    },
+    /// Track born or ended, or a warning.
+    Event(SessionEvent),
+    /// An error; `to` is the client whose message caused it (`None`: everyone).
+    Error {
+        /// Addressee.
+        to: Option<ClientId>,
+        /// The error.
+        error: ErrorBody,
+    },
+    /// The session ended: nothing follows.
+    Closed {
+        /// `finished` or `failed`.
+        state: SessionState,
+        /// Why (input finished, deleted, server shutting down, the failure).
+        reason: String,
+    },
+}
+
+/// Why a message or request was not accepted; the session keeps running.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejection {
+    /// Machine-readable reason (`queue_full`, `bad_channels`, `session_closed`, ...).
+    pub code: &'static str,
+    /// The field at fault, when one is.
+    pub field: Option<String>,
+    /// Explanation.
+    pub message: String,
+}
+
+impl Rejection {
+    /// A rejection without a field.
+    pub fn new(code: &'static str, message: impl Into<String>) -> Self {
+        Self {
+            code,
+            field: None,
+            message: message.into(),
+        }
+    }
+
+    /// The wire form.
+    pub fn to_body(&self) -> ErrorBody {
+        ErrorBody {
+            code: self.code.to_string(),
+            message: self.message.clone(),
+            field: self.field.clone(),
+        }
+    }
+}
+
+impl From<InputError> for Rejection {
+    fn from(e: InputError) -> Self {
+        Self {
+            code: e.code,
+            field: (!e.field.is_empty()).then_some(e.field),
+            message: e.message,
+        }
+    }
+}
+
+/// Why a calibration or settings change did not happen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ControlError {
+    /// The pipeline refused the change (the error names the field).
+    Invalid(ConfigError),
+    /// The session did not take the request (queue full, closed).
+    Rejected(Rejection),
+    /// The pipeline did not answer within the control timeout.
+    Timeout,
+    /// The session failed or ended before applying it.
+    Ended,
+}
+
+/// A message for the worker.
+pub(super) struct Queued {
+    pub client: ClientId,
+    pub received: Instant,
+    pub work: Work,
+}
+
+/// What the worker does with a message.
+pub(super) enum Work {
+    Input(Input),
+    Recalibrate(Layout, oneshot::Sender<Result<(), ConfigError>>),
+    Configure(PipelineConfig, oneshot::Sender<Result<(), ConfigError>>),
+}
+
+/// The sending side of the queue, and the audio position it has accepted up to.
+struct Inbox {
+    tx: Option<SyncSender<Queued>>,
+    next_sample: u64,
+}
+
+/// Life-cycle state with the reason of its end.
+struct Life {
+    state: SessionState,
+    error: Option<ErrorBody>,
+    close_reason: String,
+    ended: Option<Instant>,
+}
+
+/// What a session is created from.
+pub struct SessionSpec {
+    /// Session id.
+    pub id: String,
+    /// Name given by the creator.
+    pub name: Option<String>,
+    /// Bearer token of the session.
+    pub token: String,
+    /// Calibrated sensors.
+    pub layout: Layout,
+    /// Pipeline settings in force.
+    pub settings: PipelineConfig,
+    /// Tracker step period (s), as the pipeline rounds it.
+    pub step_s: f64,
+    /// Separated-audio delay (samples) beyond one step.
+    pub audio_delay_samples: u64,
+    /// Bounds on queues and clients.
+    pub limits: Limits,
+}
+
+/// One live session's shared state (see the module documentation).
+pub struct Session {
+    id: String,
+    name: Option<String>,
+    token: String,
+    created_unix_s: f64,
+    sample_rate: u32,
+    channels: usize,
+    step_s: f64,
+    audio_delay_samples: u64,
+    limits: Limits,
+    layout: RwLock<Arc<Layout>>,
+    settings: RwLock<PipelineConfig>,
+    inbox: Mutex<Inbox>,
+    outputs: broadcast::Sender<Arc<Output>>,
+    life: Mutex<Life>,
+    history: Mutex<VecDeque<TracksSnapshot>>,
+    live_labels: Mutex<Vec<Label>>,
+    /// `max_gap_s` of the settings in force, in samples (read for every audio frame).
+    max_gap_samples: AtomicU64,
+    clients: AtomicUsize,
+    next_client: AtomicU64,
+    server: Arc<ServerMetrics>,
+    /// The session's counters.
+    pub counters: SessionCounters,
+}
+
+/// A transport's handle on a session.
+#[derive(Clone)]
+pub struct SessionHandle(Arc<Session>);
+
+impl std::ops::Deref for SessionHandle {
+    type Target = Session;
+
+    fn deref(&self) -> &Session {
+        &self.0
+    }
+}
+
+/// A client's place in a session; leaving drops it.
+pub struct ClientGuard {
+    session: SessionHandle,
+    id: ClientId,
+}
+
+impl ClientGuard {
+    /// The client's id within its session.
+    pub fn id(&self) -> ClientId {
+        self.id
+    }
+}
+
+impl Drop for ClientGuard {
+    fn drop(&mut self) {
+        self.session.clients.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+fn gap_samples(settings: &PipelineConfig, sample_rate: u32) -> u64 {
+    (settings.max_gap_s * f64::from(sample_rate)) as u64
+}
+
+fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+impl SessionHandle {
+    /// Starts a session: its worker thread drives `engine` from a queue of `limits.queue_depth`.
+    pub fn start<E: Engine>(
+        spec: SessionSpec,
+        engine: E,
+        server: Arc<ServerMetrics>,
+    ) -> std::io::Result<Self> {
+        let (tx, rx): (SyncSender<Queued>, Receiver<Queued>) =
+            sync_channel(spec.limits.queue_depth);
+        let (outputs, _) = broadcast::channel(spec.limits.output_buffer);
+        let max_gap = gap_samples(&spec.settings, spec.layout.sample_rate);
+        let session = Arc::new(Session {
+            max_gap_samples: AtomicU64::new(max_gap),
+            created_unix_s: unix_now(),
+            sample_rate: spec.layout.sample_rate,
+            channels: spec.layout.channel_count(),
+            step_s: spec.step_s,
+            audio_delay_samples: spec.audio_delay_samples,
+            layout: RwLock::new(Arc::new(spec.layout)),
+            settings: RwLock::new(spec.settings),
+            inbox: Mutex::new(Inbox {
+                tx: Some(tx),
+                next_sample: 0,
+            }),
+            outputs,
+            life: Mutex::new(Life {
+                state: SessionState::Running,
+                error: None,
+                close_reason: "input finished".into(),
+                ended: None,
+            }),
+            history: Mutex::new(VecDeque::new()),
+            live_labels: Mutex::new(Vec::new()),
+            clients: AtomicUsize::new(0),
+            next_client: AtomicU64::new(1),
+            counters: SessionCounters::new(server.clone()),
+            server,
+            id: spec.id,
+            name: spec.name,
+            token: spec.token,
+            limits: spec.limits,
+        });
+        let handle = Self(session);
+        let for_worker = handle.clone();
+        std::thread::Builder::new()
+            .name(format!("session-{}", handle.id))
+            .spawn(move || worker::run(engine, for_worker, rx))?;
+        Ok(handle)
+    }
+
+    /// Attaches a client (counted against `max_clients_per_session`).
+    pub fn attach(&self) -> Result<ClientGuard, Rejection> {
+        let max = self.limits.max_clients_per_session;
+        let joined = self
+            .clients
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| (n < max).then_some(n + 1));
+        if joined.is_err() {
+            return Err(Rejection::new(
+                "too_many_clients",
+                format!("the session already has {max} clients (limits.max_clients_per_session)"),
+            ));
+        }
+        Ok(ClientGuard {
+            session: self.clone(),
+            id: self.next_client.fetch_add(1, Ordering::Relaxed),
+        })
+    }
+}
+
+impl Session {
+    /// Session id.
+    pub fn id(&self) -> &str {
+        &self.id
+    }
+
+    /// Creation time (Unix seconds).
+    pub fn created_unix_s(&self) -> f64 {
+        self.created_unix_s
+    }
+
+    /// Whether `presented` is this session's token (constant-time comparison).
+    pub fn token_matches(&self, presented: &str) -> bool {
+        auth::same_secret(&self.token, presented)
+    }
+
+    /// Life state.
+    pub fn state(&self) -> SessionState {
+        self.life
+            .lock()
+            .map_or(SessionState::Failed, |l| l.state)
+    }
+
+    /// When the session finished or failed, if it did.
+    pub fn ended(&self) -> Option<Instant> {
+        self.life.lock().ok().and_then(|l| l.ended)
+    }
+
+    /// The calibration in force.
+    pub fn layout(&self) -> Arc<Layout> {
+        self.layout
+            .read()
+            .map_or_else(|e| e.into_inner().clone(), |l| l.clone())
+    }
+
+    /// The settings in force.
+    pub fn settings(&self) -> PipelineConfig {
+        self.settings
+            .read()
+            .map_or_else(|e| e.into_inner().clone(), |s| s.clone())
+    }
+
+    /// Audio sample rate (Hz).
+    pub fn sample_rate(&self) -> u32 {
+        self.sample_rate
+    }
+
+    /// Channels an audio frame must carry.
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// Tracker step period (s).
+    pub fn step_s(&self) -> f64 {
+        self.step_s
+    }
+
+    /// Separated-audio delay beyond one step (samples).
+    pub fn audio_delay_samples(&self) -> u64 {
+        self.audio_delay_samples
+    }
+
+    /// The session's limits.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// Connected clients.
+    pub fn clients(&self) -> usize {
+        self.clients.load(Ordering::Acquire)
+    }
+
+    /// Index of the next audio sample frame the session accepts (a resuming client sends from
+    /// here).
+    pub fn next_sample(&self) -> u64 {
+        self.inbox.lock().map_or(0, |i| i.next_sample)
+    }
+
+    /// Labels of the tracks that exist now.
+    pub fn live_labels(&self) -> Vec<Label> {
+        self.live_labels
+            .lock()
+            .map(|l| l.clone())
+            .unwrap_or_default()
+    }
+
+    /// A receiver of everything the session produces from now on.
+    pub fn subscribe(&self) -> broadcast::Receiver<Arc<Output>> {
+        self.outputs.subscribe()
+    }
+
+    fn closed_rejection(&self) -> Rejection {
+        match self.state() {
+            SessionState::Failed => Rejection::new(
+                "session_failed",
+                "the session's pipeline failed; it accepts no more input",
+            ),
+            s => Rejection::new(
+                "session_closed",
+                format!("the session is {} and accepts no more input", s.as_str()),
+            ),
+        }
+    }
+
+    /// Queues input for the pipeline, or refuses it without blocking: invalid audio, audio out
+    /// of order, a full queue (`queue_full`) or a closed session. Refusals are counted.
+    pub fn submit(&self, client: ClientId, input: Input) -> Result<(), Rejection> {
+        let kind = input.kind();
+        let result = self.try_submit(client, input);
+        match &result {
+            Ok(()) => self.counters.accepted(kind),
+            Err(e) => self.counters.refused(e.code),
+        }
+        result
+    }
+
+    fn try_submit(&self, client: ClientId, input: Input) -> Result<(), Rejection> {
+        let mut inbox = self
+            .inbox
+            .lock()
+            .map_err(|_| Rejection::new("internal", "session lock poisoned"))?;
+        if inbox.tx.is_none() {
+            return Err(self.closed_rejection());
+        }
+        let mut audio_end = None;
+        if let Input::Audio(f) = &input {
+            check_audio(&self.layout(), f.channels, &f.samples)?;
+            audio_end = Some(self.check_audio_order(inbox.next_sample, f)?);
+        }
+        self.enqueue(&inbox, client, Work::Input(input))?;
+        if let Some(end) = audio_end {
+            inbox.next_sample = end;
+        }
+        Ok(())
+    }
+
+    /// Refuses audio that goes back in time or skips more than `max_gap_s`; returns the end of
+    /// the frame.
+    fn check_audio_order(&self, expected: u64, f: &AudioFrame) -> Result<u64, Rejection> {
+        let first = f.first_sample;
+        let field = Some("first_sample".to_string());
+        if first < expected {
+            return Err(Rejection {
+                code: "time_backwards",
+                field,
+                message: format!(
+                    "frame starts at sample {first} but sample {expected} is next (time goes backwards or overlaps)"
+                ),
+            });
+        }
+        let max_gap = self.max_gap_samples.load(Ordering::Relaxed);
+        if first - expected > max_gap {
+            return Err(Rejection {
+                code: "gap_too_long",
+                field,
+                message: format!(
+                    "frame starts at sample {first}, {} samples after the expected {expected}, more than max_gap_s allows",
+                    first - expected
+                ),
+            });
+        }
+        Ok(first + f.frames() as u64)
+    }
+
+    fn enqueue(&self, inbox: &Inbox, client: ClientId, work: Work) -> Result<(), Rejection> {
+        let Some(tx) = inbox.tx.as_ref() else {
+            return Err(self.closed_rejection());
+        };
+        self.counters.queue_depth.fetch_add(1, Ordering::AcqRel);
+        let queued = Queued {
+            client,
+            received: Instant::now(),
+            work,
+        };
+        match tx.try_send(queued) {
+            Ok(()) => Ok(()),
+            Err(e) => {
+                self.counters.queue_depth.fetch_sub(1, Ordering::AcqRel);
+                Err(match e {
+                    TrySendError::Full(_) => Rejection::new(
+                        "queue_full",
+                        format!(
+                            "the session's queue holds {} messages; this one was dropped (send slower or retry)",
+                            self.limits.queue_depth
+                        ),
+                    ),
+                    TrySendError::Disconnected(_) => self.closed_rejection(),
+                })
+            }
+        }
+    }
+
+    /// Ends the input: the worker processes what is queued, flushes, and closes every stream
+    /// with `reason`. Later input is refused.
+    pub fn finish(&self, reason: &str) {
+        if let Ok(mut inbox) = self.inbox.lock() {
+            inbox.tx = None;
+        }
+        if let Ok(mut life) = self.life.lock()
+            && life.state == SessionState::Running
+        {
+            life.state = SessionState::Finishing;
+            life.close_reason = reason.to_string();
+        }
+    }
+
+    async fn control(
+        &self,
+        make: impl FnOnce(oneshot::Sender<Result<(), ConfigError>>) -> Work,
+    ) -> Result<(), ControlError> {
+        let (tx, rx) = oneshot::channel();
+        {
+            let inbox = self.inbox.lock().map_err(|_| ControlError::Ended)?;
+            self.enqueue(&inbox, 0, make(tx))
+                .map_err(ControlError::Rejected)?;
+        }
+        let wait = Duration::from_secs_f64(self.limits.control_timeout_s);
+        match tokio::time::timeout(wait, rx).await {
+            Err(_) => Err(ControlError::Timeout),
+            Ok(Err(_)) => Err(ControlError::Ended),
+            Ok(Ok(r)) => r.map_err(ControlError::Invalid),
+        }
+    }
+
+    /// Replaces the calibration; the pipeline applies it after the input queued before it, at
+    /// its next step, keeping its tracks.
+    pub async fn recalibrate(&self, layout: Layout) -> Result<(), ControlError> {
+        self.control(|tx| Work::Recalibrate(layout, tx)).await
+    }
+
+    /// Changes settings that can change live (others are refused, naming the field).
+    pub async fn configure(&self, settings: PipelineConfig) -> Result<(), ControlError> {
+        self.control(|tx| Work::Configure(settings, tx)).await
+    }
+
+    /// Track estimates from `from_step` on (all held when `None`), at most `limit`.
+    pub fn history(&self, from_step: Option<u64>, limit: usize) -> TrackHistory {
+        let Ok(h) = self.history.lock() else {
+            return TrackHistory {
+                oldest_step: None,
+                steps: Vec::new(),
+            };
+        };
+        let from = from_step.unwrap_or(0);
+        TrackHistory {
+            oldest_step: h.front().map(|s| s.step),
+            steps: h
+                .iter()
+                .filter(|s| s.step >= from)
+                .take(limit)
+                .cloned()
+                .collect(),
+        }
+    }
+
+    /// The latest track estimate.
+    pub fn latest_tracks(&self) -> Option<TracksSnapshot> {
+        self.history.lock().ok().and_then(|h| h.back().cloned())
+    }
+
+    /// The session's description with its current calibration.
+    pub fn info(&self) -> SessionInfo {
+        let layout = self.layout();
+        let (state, error) = self
+            .life
+            .lock()
+            .map_or((SessionState::Failed, None), |l| (l.state, l.error.clone()));
+        SessionInfo {
+            id: self.id.clone(),
+            name: self.name.clone(),
+            state,
+            error,
+            created_unix_s: self.created_unix_s,
+            sample_rate: self.sample_rate,
+            speed_of_sound: layout.speed_of_sound,
+            channels: self.channels,
+            arrays: layout.arrays.iter().map(array_to_file).collect(),
+            cameras: layout.cameras.iter().map(camera_to_file).collect(),
+            region: layout.region.map(|r| RegionFile {
+                min: r.min.into(),
+                max: r.max.into(),
+            }),
+            step_s: self.step_s,
+            next_sample: self.next_sample(),
+            clients: self.clients(),
+            live_labels: self.live_labels(),
+        }
+    }
+
+    /// The session's line in a listing.
+    pub fn summary(&self) -> SessionSummary {
+        SessionSummary {
+            id: self.id.clone(),
+            name: self.name.clone(),
+            state: self.state(),
+            created_unix_s: self.created_unix_s,
+            clients: self.clients(),
+            next_sample: self.next_sample(),
+        }
+    }
+
+    /// The session's metrics.
+    pub fn metrics(&self) -> SessionMetrics {
+        let c = &self.counters;
+        let (latency, processing) = c.latencies();
+        let (audio_s, rtf) = c.real_time(self.sample_rate);
+        SessionMetrics {
+            state: self.state(),
+            frames_in: c.frames_in(),
+            refused: c.refusals(),
+            output_dropped: c.dropped(),
+            steps: c.steps(),
+            step_latency_ms: latency,
+            step_processing_ms: processing,
+            real_time_factor: rtf,
+            audio_s,
+            live_tracks: c.live_tracks.load(Ordering::Relaxed),
+            labels_total: c.labels_total.load(Ordering::Relaxed),
+            queue_depth: c.queue_depth.load(Ordering::Relaxed),
+            queue_capacity: self.limits.queue_depth,
+            clients: self.clients(),
+        }
+    }
+
+    // ---- used by the worker ----
+
+    /// Sends an output to every subscriber (none listening is fine).
+    pub(super) fn broadcast(&self, out: Output) {
+        let _ = self.outputs.send(Arc::new(out));
+    }
+
+    /// Records a step's estimate in the history ring and the live labels.
+    pub(super) fn record_tracks(&self, snap: &TracksSnapshot) {
+        let labels: Vec<Label> = snap.tracks.iter().map(|t| t.label).collect();
+        self.counters
+            .live_tracks
+            .store(labels.len(), Ordering::Relaxed);
+        if let Ok(mut l) = self.live_labels.lock() {
+            *l = labels;
+        }
+        if let Ok(mut h) = self.history.lock() {
+            if h.len() == self.limits.history_steps {
+                h.pop_front();
+            }
+            h.push_back(snap.clone());
+        }
+    }
+
+    /// The calibration the pipeline now uses.
+    pub(super) fn set_layout(&self, layout: Layout) {
+        if let Ok(mut l) = self.layout.write() {
+            *l = Arc::new(layout);
+        }
+    }
+
+    /// The settings the pipeline now uses.
+    pub(super) fn set_settings(&self, settings: PipelineConfig) {
+        self.max_gap_samples
+            .store(gap_samples(&settings, self.sample_rate), Ordering::Relaxed);
+        if let Ok(mut s) = self.settings.write() {
+            *s = settings;
+        }
+    }
+
+    /// The worker has flushed everything: the session is finished.
+    pub(super) fn close_finished(&self) {
+        let reason = match self.life.lock() {
+            Ok(mut life) => {
+                life.state = SessionState::Finished;
+                life.ended = Some(Instant::now());
+                life.close_reason.clone()
+            }
+            Err(_) => String::new(),
+        };
+        self.counters.live_tracks.store(0, Ordering::Relaxed);
+        self.broadcast(Output::Closed {
+            state: SessionState::Finished,
+            reason,
+        });
+    }
+
+    /// The pipeline panicked: the session fails, its streams get an error and close.
+    pub(super) fn close_failed(&self, message: String) {
+        if let Ok(mut inbox) = self.inbox.lock() {
+            inbox.tx = None;
+        }
+        let error = ErrorBody {
+            code: "session_failed".into(),
+            message: format!("the session's pipeline failed: {message}"),
+            field: None,
+        };
+        if let Ok(mut life) = self.life.lock() {
+            life.state = SessionState::Failed;
+            life.error = Some(error.clone());
+            life.ended = Some(Instant::now());
+        }
+        self.server.session_failed();
+        self.counters.live_tracks.store(0, Ordering::Relaxed);
+        tracing::error!(session = %self.id, "{}", error.message);
+        self.broadcast(Output::Error {
+            to: None,
+            error: error.clone(),
+        });
+        self.broadcast(Output::Closed {
+            state: SessionState::Failed,
+            reason: error.message,
+        });
+    }
+}

@@ -1,0 +1,265 @@
+//! Bad input over the stream and over REST: each gets an error that names the problem, and the
+//! session keeps processing the valid input that follows (the result still equals the offline
+//! run, since nothing refused touches the session).
+
+mod server_support;
+
+use avsep::protocol::audio_frame::AUDIO_IN_HEADER;
+use avsep::protocol::{AudioFrame, ErrorBody, SampleEncoding};
+use avsep::server::client::{FeedItem, FeedMessage, StreamOptions, http, scene_feed, stream_feed};
+use avsep::server::{Limits, ServerConfig};
+use server_support::{TestServer, assert_same_tracks, offline, scene, settings};
+
+fn bad_audio(bytes: Vec<u8>, end: u64) -> FeedItem {
+    FeedItem {
+        due_s: 0.0,
+        message: FeedMessage::Audio { bytes, end },
+    }
+}
+
+fn bad_json(text: &str) -> FeedItem {
+    FeedItem {
+        due_s: 0.0,
+        message: FeedMessage::Json(text.to_string()),
+    }
+}
+
+fn find<'a>(errors: &'a [ErrorBody], code: &str, field: Option<&str>) -> &'a ErrorBody {
+    errors
+        .iter()
+        .find(|e| e.code == code && e.field.as_deref() == field)
+        .unwrap_or_else(|| panic!("no error {code} {field:?} among {errors:#?}"))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
+    let cfg = ServerConfig {
+        limits: Limits {
+            max_audio_samples: 8 * 2048,
+            ..Limits::default()
+        },
+        ..ServerConfig::default()
+    };
+    let server = TestServer::start(cfg).await;
+    let sc = scene("uca8", 2.0, 2, 51);
+    let (tracks, _) = offline(&sc, settings(9));
+    let s = server.create(&sc, settings(9), None).await;
+    let audio = sc.audio.as_ref().unwrap();
+    let ch = audio.channels;
+    let block = |first: usize, frames: usize| AudioFrame {
+        first_sample: first as u64,
+        channels: ch,
+        samples: audio.samples[first * ch..(first + frames) * ch].to_vec(),
+        encoding: SampleEncoding::F32,
+    };
+    let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
+    // Where the audio of samples [4096, 5120) is sent: bad messages go just after it.
+    let k = feed
+        .iter()
+        .position(|i| matches!(i.message, FeedMessage::Audio { end: 5120, .. }))
+        .unwrap();
+    let cam = &sc.layout.cameras[0].id;
+    let last_det_t = sc.detections.iter().filter(|d| d.t < 5120.0 / 16000.0).map(|d| d.t).fold(0.0, f64::max);
+
+    let wrong_channels = AudioFrame {
+        first_sample: 5120,
+        channels: 4,
+        samples: vec![0.0; 4 * 256],
+        encoding: SampleEncoding::F32,
+    }
+    .encode();
+    let good = block(5120, 1024).encode();
+    let truncated = good[..good.len() - 3].to_vec();
+    let header_only = good[..10].to_vec();
+    let oversized = AudioFrame {
+        first_sample: 5120,
+        channels: ch,
+        samples: vec![0.0; ch * 4096],
+        encoding: SampleEncoding::F32,
+    }
+    .encode();
+    assert!(oversized.len() < Limits::default().max_message_bytes);
+    let mut with_nan = block(5120, 1024);
+    with_nan.samples[3 * ch + 2] = f32::NAN;
+    let backwards = block(4096, 1024).encode();
+    let inserted = vec![
+        bad_audio(wrong_channels, 5120),
+        bad_audio(truncated, 5120),
+        bad_audio(header_only, 5120),
+        bad_audio(oversized, 5120),
+        bad_audio(with_nan.encode(), 5120),
+        bad_audio(backwards, 5120),
+        bad_json("{\"type\": \"detections\", \"t\": 0.4,"),
+        bad_json("{\"type\": \"teleport\"}"),
+        bad_json(&format!("{{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}}")),
+        bad_json(&format!(
+            "{{\"type\":\"detections\",\"t\":0.2,\"camera\":\"{cam}\",\"boxes\":[{{\"x\":10,\"y\":10,\"w\":-5,\"h\":10}}]}}"
+        )),
+        // Earlier than this camera's last frame: the pipeline refuses it as going backwards.
+        bad_json(&format!(
+            "{{\"type\":\"detections\",\"t\":{},\"camera\":\"{cam}\",\"boxes\":[]}}",
+            last_det_t - 0.05
+        )),
+    ];
+    let mut with_errors = feed[..=k].to_vec();
+    with_errors.extend(inserted);
+    with_errors.extend(feed[k + 1..].iter().cloned());
+
+    let got = stream_feed(&server.ws_url(&s), &s.token, &with_errors, &StreamOptions::default())
+        .await
+        .unwrap();
+    let e = &got.errors;
+    assert!(find(e, "bad_channels", Some("channels")).message.contains("4 channels"));
+    find(e, "truncated", Some("samples"));
+    find(e, "truncated", Some("header"));
+    assert!(find(e, "oversized", Some("frame_count")).message.contains("limit"));
+    assert!(find(e, "non_finite", Some("samples")).message.contains("sample 3 of channel 2"));
+    assert!(find(e, "time_backwards", Some("first_sample")).message.contains("5120"));
+    find(e, "bad_json", None);
+    let m = e.iter().find(|e| e.code == "bad_message").expect("bad_message");
+    assert!(m.message.contains("teleport"), "{m:?}");
+    assert!(find(e, "unknown_camera", Some("camera")).message.contains("cam9"));
+    find(e, "bad_box", Some("boxes[0].w"));
+    find(e, "time_backwards", Some("t"));
+    assert_eq!(e.len(), 11, "{e:#?}");
+
+    // Every refusal left the session untouched: the valid input around them gives exactly the
+    // offline result.
+    assert_same_tracks(&tracks, &got.tracks);
+    let m = http(&server.host(), "GET", &format!("/v1/sessions/{}/metrics", s.id), Some(&s.token), None)
+        .await
+        .unwrap();
+    let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
+    assert_eq!(m.refused.values().sum::<u64>(), 11, "{:?}", m.refused);
+    assert_eq!(m.refused["truncated"], 2);
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_rest_requests_get_statuses_that_name_the_problem() {
+    let key = "an-admin-key-of-some-length";
+    let cfg = ServerConfig {
+        admin_key: Some(key.into()),
+        limits: Limits {
+            max_body_bytes: 64 << 10,
+            max_sessions: 2,
+            max_clients_per_session: 1,
+            ..Limits::default()
+        },
+        ..ServerConfig::default()
+    };
+    let server = TestServer::start(cfg).await;
+    let host = server.host();
+    let sc = scene("uca8", 0.5, 1, 61);
+    let body = serde_json::to_vec(&avsep::server::client::create_body(&sc.layout, None)).unwrap();
+    let post = |auth: Option<&'static str>, b: Vec<u8>| {
+        let host = host.clone();
+        async move { http(&host, "POST", "/v1/sessions", auth, Some(&b)).await.unwrap() }
+    };
+    let err = |r: &avsep::server::client::HttpResponse| -> ErrorBody {
+        r.json::<avsep::protocol::rest::ErrorResponse>().unwrap().error
+    };
+
+    // Credentials: missing 401, wrong 403, never data.
+    let r = post(None, body.clone()).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (401, "unauthorized"));
+    let r = post(Some("wrong-key-wrong-key"), body.clone()).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (403, "forbidden"));
+    let r = http(&host, "GET", "/v1/sessions", None, None).await.unwrap();
+    assert_eq!(r.status, 401);
+    assert!(!r.text().contains("sessions\":["));
+
+    // Body problems: malformed 400, wrong shape 422 naming the field, too large 413.
+    let r = post(Some(key), b"{\"sample_rate\": ".to_vec()).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (400, "bad_json"));
+    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    bad["arrays"][0]["mics"][2] = serde_json::json!([0.0, 0.0]);
+    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("arrays[0].mics[2]")));
+    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    bad["cameras"][0]["projection"] = serde_json::Value::Null;
+    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("cameras[0].projection")));
+    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    bad["settings"] = serde_json::json!({"track": {"survival_probability": 3.0}});
+    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    assert_eq!(r.status, 422, "{}", r.text());
+    assert_eq!(err(&r).field.as_deref(), Some("settings.track.survival_probability"));
+    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    bad["settings"] = serde_json::json!({"stepsize": 1});
+    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    assert!(r.status == 422 && err(&r).message.contains("stepsize"), "{}", r.text());
+    let r = post(Some(key), vec![b' '; 70 << 10]).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (413, "too_large"));
+
+    // A session: its token opens it; a wrong one gets 403 and unknown ids 404.
+    let r = post(Some(key), body.clone()).await;
+    assert_eq!(r.status, 201);
+    let s: avsep::protocol::rest::SessionCreated = r.json().unwrap();
+    let path = format!("/v1/sessions/{}", s.id);
+    assert_eq!(http(&host, "GET", &path, Some(&s.token), None).await.unwrap().status, 200);
+    assert_eq!(http(&host, "GET", &path, Some(key), None).await.unwrap().status, 200);
+    let r = http(&host, "GET", &path, None, None).await.unwrap();
+    assert_eq!(r.status, 401);
+    let r = http(&host, "GET", &path, Some(&s.token[..63]), None).await.unwrap();
+    assert_eq!(r.status, 403);
+    assert!(!r.text().contains(&s.id) || err(&r).code == "forbidden");
+    let r = http(&host, "GET", &format!("{path}?token={}", s.token), None, None).await.unwrap();
+    assert_eq!(r.status, 200, "the token also works as a query parameter");
+    let r = http(&host, "GET", "/v1/sessions/0000000000000000", Some(key), None).await.unwrap();
+    assert_eq!((r.status, err(&r).code.as_str()), (404, "not_found"));
+    let r = http(&host, "DELETE", &path, Some(&s.token), None).await.unwrap();
+    assert_eq!(r.status, 403, "deleting needs the admin key when one is configured");
+
+    // Streams: wrong or missing token refused before the upgrade.
+    let url = format!("ws://{host}{}", s.stream);
+    let e = avsep::server::client::connect(&url, "nope").await.unwrap_err();
+    assert!(e.0.contains("403"), "{e}");
+    let e = tokio_tungstenite::connect_async(url.as_str()).await.unwrap_err();
+    assert!(e.to_string().contains("401"), "{e}");
+    let r = http(&host, "GET", &format!("{path}/stream"), Some(&s.token), None).await.unwrap();
+    assert_eq!((r.status, err(&r).code.as_str()), (400, "not_websocket"));
+    // One client allowed (limits.max_clients_per_session = 1): the second gets 429.
+    let first = avsep::server::client::connect(&url, &s.token).await.unwrap();
+    let e = avsep::server::client::connect(&url, &s.token).await.unwrap_err();
+    assert!(e.0.contains("429"), "{e}");
+    drop(first);
+
+    // Calibration and settings: unknown sensors 404, changes that cannot happen live 409,
+    // invalid values 422.
+    let put = |p: String, b: serde_json::Value| {
+        let (host, token) = (host.clone(), s.token.clone());
+        async move { http(&host, "PUT", &p, Some(&token), Some(&serde_json::to_vec(&b).unwrap())).await.unwrap() }
+    };
+    let r = put(format!("{path}/cameras/cam9"), serde_json::json!({"projection": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]})).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (404, Some("camera")));
+    let a0 = &sc.layout.arrays[0].id;
+    let r = put(format!("{path}/arrays/{a0}"), serde_json::json!({"mics": [[0, 0, 0]]})).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (409, Some("mics")));
+    let cam = &sc.layout.cameras[0].id;
+    let r = put(format!("{path}/cameras/{cam}"), serde_json::json!({"rotation": [[1,0,0],[0,1,0],[0,0,1]]})).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("translation")));
+    let patch = |b: serde_json::Value| {
+        let (host, token, p) = (host.clone(), s.token.clone(), format!("{path}/settings"));
+        async move { http(&host, "PATCH", &p, Some(&token), Some(&serde_json::to_vec(&b).unwrap())).await.unwrap() }
+    };
+    let r = patch(serde_json::json!({"step_s": 0.064})).await;
+    assert_eq!((r.status, err(&r).code.as_str(), err(&r).field.as_deref()), (409, "not_live", Some("step_s")));
+    let r = patch(serde_json::json!({"separate": {"frame": 512}})).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (409, Some("separate.frame")));
+    let r = patch(serde_json::json!({"camera_wait_s": 9.0})).await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("camera_wait_s")));
+    let r = patch(serde_json::json!({"bogus": 1})).await;
+    assert_eq!(r.status, 422);
+    assert!(err(&r).message.contains("bogus"));
+
+    // Capacity: max_sessions = 2.
+    assert_eq!(post(Some(key), body.clone()).await.status, 201);
+    let r = post(Some(key), body.clone()).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (503, "at_capacity"));
+    let r = http(&host, "GET", "/readyz", None, None).await.unwrap();
+    assert_eq!(r.status, 503);
+    let r = http(&host, "GET", "/v1/nothing", None, None).await.unwrap();
+    assert_eq!((r.status, err(&r).code.as_str()), (404, "not_found"));
+    server.stop().await;
+}
