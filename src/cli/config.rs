@@ -36,7 +36,11 @@ pub struct ConfigArgs {
 /// Runs the command.
 pub fn run(args: ConfigArgs) -> Result<(), CliError> {
     let cfg = match (&args.file, args.defaults) {
-        (Some(_), true) => return Err(CliError::input("give either --defaults or a FILE, not both")),
+        (Some(_), true) => {
+            return Err(CliError::input(
+                "give either --defaults or a FILE, not both",
+            ));
+        }
         (Some(p), false) => load_config(p)?,
         (None, _) => PipelineConfig::default(),
     };
@@ -44,7 +48,8 @@ pub fn run(args: ConfigArgs) -> Result<(), CliError> {
         ConfigFormat::Toml => documented_toml(&cfg).map_err(CliError::runtime)?,
         ConfigFormat::Json => serde_json::to_string_pretty(&cfg).map_err(CliError::runtime)?,
         ConfigFormat::Schema => {
-            serde_json::to_string_pretty(&schemars::schema_for!(PipelineConfig)).map_err(CliError::runtime)?
+            serde_json::to_string_pretty(&schemars::schema_for!(PipelineConfig))
+                .map_err(CliError::runtime)?
         }
     };
     println!("{}", text.trim_end());

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use clap::Args;
 
 use super::{CliError, Progress};
-use crate::pipeline::offline::{OfflineOptions, ProcessError, process_scene};
 use crate::pipeline::PipelineConfig;
+use crate::pipeline::offline::{OfflineOptions, ProcessError, process_scene};
 use crate::scene::Scene;
 
 /// Arguments of `avsep process`.
@@ -36,7 +36,11 @@ pub fn load_config(path: &std::path::Path) -> Result<PipelineConfig, CliError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| CliError::input(format!("{}: cannot read: {e}", path.display())))?;
     PipelineConfig::parse(&text).map_err(|e| {
-        let field = if e.field.is_empty() { String::new() } else { format!("field `{}`: ", e.field) };
+        let field = if e.field.is_empty() {
+            String::new()
+        } else {
+            format!("field `{}`: ", e.field)
+        };
         CliError::input(format!("{}: {field}{}", path.display(), e.message))
     })
 }
@@ -52,9 +56,16 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
     }
     let scene = Scene::load(&args.scene)?;
     let bar = Progress::new(1000, "processing");
-    let summary = process_scene(&scene, cfg, &args.out, OfflineOptions { oracle_tracks: args.oracle_tracks, ..Default::default() }, &|f| {
-        bar.set((f * 1000.0) as u64)
-    })
+    let summary = process_scene(
+        &scene,
+        cfg,
+        &args.out,
+        OfflineOptions {
+            oracle_tracks: args.oracle_tracks,
+            ..Default::default()
+        },
+        &|f| bar.set((f * 1000.0) as u64),
+    )
     .map_err(|e| match e {
         ProcessError::Files(e) => CliError::input(e),
         ProcessError::Config(e) => CliError::input(format!("configuration: {e}")),
@@ -62,7 +73,10 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
     })?;
     bar.finish();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary).map_err(CliError::runtime)?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&summary).map_err(CliError::runtime)?
+        );
     } else {
         println!(
             "processed {:.2} s of input in {:.2} s (real-time factor {:.3}); {} tracks, {} speech segments -> {}",

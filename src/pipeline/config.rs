@@ -106,7 +106,10 @@ pub struct ConfigError {
 impl ConfigError {
     /// An error about `field`.
     pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self { field: field.into(), message: message.into() }
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
     }
 }
 
@@ -114,10 +117,16 @@ impl PipelineConfig {
     /// Checks the pipeline's own fields (the stages check theirs when built).
     pub fn validate(&self) -> Result<(), ConfigError> {
         if !(0.032..=1.0).contains(&self.step_s) {
-            return Err(ConfigError::new("step_s", format!("{} is outside 0.032..=1.0 s", self.step_s)));
+            return Err(ConfigError::new(
+                "step_s",
+                format!("{} is outside 0.032..=1.0 s", self.step_s),
+            ));
         }
         if !(0.0..=2.0).contains(&self.camera_wait_s) {
-            return Err(ConfigError::new("camera_wait_s", format!("{} is outside 0..=2 s", self.camera_wait_s)));
+            return Err(ConfigError::new(
+                "camera_wait_s",
+                format!("{} is outside 0..=2 s", self.camera_wait_s),
+            ));
         }
         if !(0.0..=1.0).contains(&self.min_box_score) {
             return Err(ConfigError::new("min_box_score", "must be in [0, 1]"));
@@ -136,9 +145,11 @@ impl PipelineConfig {
             serde_path_to_error::deserialize(de)
                 .map_err(|e| ConfigError::new(e.path().to_string(), e.inner().to_string()))?
         } else {
-            let de = toml::Deserializer::parse(text).map_err(|e| ConfigError::new("", e.to_string()))?;
-            serde_path_to_error::deserialize(de)
-                .map_err(|e| ConfigError::new(e.path().to_string(), e.inner().message().to_string()))?
+            let de =
+                toml::Deserializer::parse(text).map_err(|e| ConfigError::new("", e.to_string()))?;
+            serde_path_to_error::deserialize(de).map_err(|e| {
+                ConfigError::new(e.path().to_string(), e.inner().message().to_string())
+            })?
         };
         cfg.validate()?;
         Ok(cfg)

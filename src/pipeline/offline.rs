@@ -11,10 +11,10 @@ use crate::label::Label;
 use crate::scene::output::files;
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_json};
 
+use super::PipelineEvent;
 use super::config::{ConfigError, PipelineConfig};
 use super::diarization::{Diarizer, to_rttm};
 use super::session::{Pipeline, PipelineStats};
-use super::PipelineEvent;
 
 /// Options of an offline run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,7 +27,10 @@ pub struct OfflineOptions {
 
 impl Default for OfflineOptions {
     fn default() -> Self {
-        Self { oracle_tracks: false, block_samples: 1024 }
+        Self {
+            oracle_tracks: false,
+            block_samples: 1024,
+        }
     }
 }
 
@@ -93,13 +96,21 @@ impl OutputSink {
             match e {
                 PipelineEvent::Measurements(line) => self.measurements.write(&line)?,
                 PipelineEvent::Tracks { line, .. } => {
-                    let speaking: Vec<(Label, f64)> = line.tracks.iter().map(|t| (t.label, t.speaking)).collect();
+                    let speaking: Vec<(Label, f64)> =
+                        line.tracks.iter().map(|t| (t.label, t.speaking)).collect();
                     let half = 0.5 * self.step_s;
                     self.diarizer.push(line.t - half, line.t + half, &speaking);
                     self.tracks.write(&line)?;
                 }
-                PipelineEvent::Audio { label, first_sample, samples } => {
-                    let buf = self.audio.entry(label).or_insert_with(|| vec![0.0; self.frames]);
+                PipelineEvent::Audio {
+                    label,
+                    first_sample,
+                    samples,
+                } => {
+                    let buf = self
+                        .audio
+                        .entry(label)
+                        .or_insert_with(|| vec![0.0; self.frames]);
                     let start = first_sample as usize;
                     if start < buf.len() {
                         let n = samples.len().min(buf.len() - start);
@@ -132,7 +143,10 @@ pub fn process_scene(
     let mut pipeline = Pipeline::new(scene.layout.clone(), cfg.clone(), seed)?;
     if opts.oracle_tracks {
         let truth = scene.truth.clone().ok_or_else(|| {
-            ProcessError::Scene(format!("{}: --oracle-tracks needs a scene with truth", scene.dir.display()))
+            ProcessError::Scene(format!(
+                "{}: --oracle-tracks needs a scene with truth",
+                scene.dir.display()
+            ))
         })?;
         pipeline.use_oracle_tracks(truth);
     }
@@ -151,24 +165,37 @@ pub fn process_scene(
     };
 
     // Merge camera frames and device measurements into one time-ordered feed.
-    let mut feed: Vec<(f64, Feed)> = scene.detections.iter().map(|d| (d.t, Feed::Detection(d))).collect();
-    feed.extend(scene.audio_measurements.iter().map(|m| (m.t, Feed::Device(m))));
+    let mut feed: Vec<(f64, Feed)> = scene
+        .detections
+        .iter()
+        .map(|d| (d.t, Feed::Detection(d)))
+        .collect();
+    feed.extend(
+        scene
+            .audio_measurements
+            .iter()
+            .map(|m| (m.t, Feed::Device(m))),
+    );
     feed.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut next = 0;
-    let mut push_feed_until = |pipeline: &mut Pipeline, sink: &mut OutputSink, t_end: f64| -> Result<(), SceneError> {
-        while next < feed.len() && feed[next].0 < t_end {
-            let result = match &feed[next].1 {
-                Feed::Detection(d) => pipeline.push_detections((*d).clone()),
-                Feed::Device(m) => pipeline.push_device_measurements((*m).clone()),
-            };
-            match result {
-                Ok(events) => sink.handle(events)?,
-                Err(e) => sink.handle(vec![PipelineEvent::Warning { code: e.code, message: e.to_string() }])?,
+    let mut push_feed_until =
+        |pipeline: &mut Pipeline, sink: &mut OutputSink, t_end: f64| -> Result<(), SceneError> {
+            while next < feed.len() && feed[next].0 < t_end {
+                let result = match &feed[next].1 {
+                    Feed::Detection(d) => pipeline.push_detections((*d).clone()),
+                    Feed::Device(m) => pipeline.push_device_measurements((*m).clone()),
+                };
+                match result {
+                    Ok(events) => sink.handle(events)?,
+                    Err(e) => sink.handle(vec![PipelineEvent::Warning {
+                        code: e.code,
+                        message: e.to_string(),
+                    }])?,
+                }
+                next += 1;
             }
-            next += 1;
-        }
-        Ok(())
-    };
+            Ok(())
+        };
 
     match &scene.audio {
         Some(audio) => {
@@ -181,7 +208,10 @@ pub fn process_scene(
                 let slice = &audio.samples[start * audio.channels..end * audio.channels];
                 match pipeline.push_audio(start as u64, audio.channels, slice) {
                     Ok(events) => sink.handle(events)?,
-                    Err(e) => sink.handle(vec![PipelineEvent::Warning { code: e.code, message: e.to_string() }])?,
+                    Err(e) => sink.handle(vec![PipelineEvent::Warning {
+                        code: e.code,
+                        message: e.to_string(),
+                    }])?,
                 }
                 start = end;
                 progress(start as f64 / frames as f64);
@@ -193,17 +223,33 @@ pub fn process_scene(
     sink.handle(pipeline.finish())?;
     progress(1.0);
 
-    let OutputSink { tracks, measurements, audio, diarizer, warnings, labels, .. } = sink;
+    let OutputSink {
+        tracks,
+        measurements,
+        audio,
+        diarizer,
+        warnings,
+        labels,
+        ..
+    } = sink;
     tracks.finish()?;
     measurements.finish()?;
     let sr = scene.layout.sample_rate;
     for (label, samples) in audio {
-        Audio::mono(sr, samples).write(&out.join(files::AUDIO_DIR).join(format!("{label}.wav")), SampleFormat::F32)?;
+        Audio::mono(sr, samples).write(
+            &out.join(files::AUDIO_DIR).join(format!("{label}.wav")),
+            SampleFormat::F32,
+        )?;
     }
     let segments = diarizer.finish();
-    let file_id = scene.dir.file_name().and_then(|n| n.to_str()).unwrap_or("scene");
-    std::fs::write(out.join(files::DIARIZATION), to_rttm(file_id, &segments))
-        .map_err(|e| SceneError::new(&out.join(files::DIARIZATION), format!("cannot write: {e}")))?;
+    let file_id = scene
+        .dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("scene");
+    std::fs::write(out.join(files::DIARIZATION), to_rttm(file_id, &segments)).map_err(|e| {
+        SceneError::new(&out.join(files::DIARIZATION), format!("cannot write: {e}"))
+    })?;
 
     let duration_s = scene.duration();
     let processing_s = started.elapsed().as_secs_f64();
@@ -211,7 +257,11 @@ pub fn process_scene(
         scene: scene.dir.display().to_string(),
         duration_s,
         processing_s,
-        real_time_factor: if duration_s > 0.0 { processing_s / duration_s } else { 0.0 },
+        real_time_factor: if duration_s > 0.0 {
+            processing_s / duration_s
+        } else {
+            0.0
+        },
         oracle_tracks: opts.oracle_tracks,
         tracks: labels.iter().map(ToString::to_string).collect(),
         speech_segments: segments.len(),

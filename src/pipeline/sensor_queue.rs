@@ -33,7 +33,11 @@ pub struct SensorQueue<T> {
 
 impl<T> Default for SensorQueue<T> {
     fn default() -> Self {
-        Self { frames: VecDeque::new(), last_t: f64::NEG_INFINITY, reported: false }
+        Self {
+            frames: VecDeque::new(),
+            last_t: f64::NEG_INFINITY,
+            reported: false,
+        }
     }
 }
 
@@ -82,7 +86,11 @@ mod tests {
     use super::*;
 
     fn frame(t: f64) -> DetectionFrame {
-        DetectionFrame { t, camera: 0, boxes: vec![] }
+        DetectionFrame {
+            t,
+            camera: 0,
+            boxes: vec![],
+        }
     }
 
     #[test]

@@ -100,17 +100,32 @@ impl SeparationDriver {
             }
             let centre = clock.time_of(end) - 0.5 * n as f64 / clock.sample_rate as f64;
             let targets = targets_at(centre);
-            self.separator.process_into(&self.spectra, &targets, &mut self.out);
+            self.separator
+                .process_into(&self.spectra, &targets, &mut self.out);
             for (label, bins) in &self.out {
-                let istft = self.streams.entry(*label).or_insert_with(|| Istft::new(self.geometry));
+                let istft = self
+                    .streams
+                    .entry(*label)
+                    .or_insert_with(|| Istft::new(self.geometry));
                 istft.push(bins, &mut self.hop_out);
                 push_chunk(&mut events, *label, from, &self.hop_out);
             }
-            let finished: Vec<Label> =
-                self.streams.keys().filter(|l| !self.out.iter().any(|(o, _)| o == *l)).copied().collect();
+            let finished: Vec<Label> = self
+                .streams
+                .keys()
+                .filter(|l| !self.out.iter().any(|(o, _)| o == *l))
+                .copied()
+                .collect();
             for label in finished {
                 if let Some(istft) = self.streams.remove(&label) {
-                    flush_stream(&mut events, label, istft, from - hop as i64, self.geometry, &mut self.hop_out);
+                    flush_stream(
+                        &mut events,
+                        label,
+                        istft,
+                        from - hop as i64,
+                        self.geometry,
+                        &mut self.hop_out,
+                    );
                 }
             }
             self.next_frame += 1;
@@ -121,9 +136,17 @@ impl SeparationDriver {
     /// Emits the overlap tails of every open stream (end of input).
     pub fn flush(&mut self) -> Vec<PipelineEvent> {
         let mut events = Vec::new();
-        let last_from = (self.next_frame * self.geometry.hop as u64) as i64 - self.geometry.frame as i64;
+        let last_from =
+            (self.next_frame * self.geometry.hop as u64) as i64 - self.geometry.frame as i64;
         for (label, istft) in std::mem::take(&mut self.streams) {
-            flush_stream(&mut events, label, istft, last_from, self.geometry, &mut self.hop_out);
+            flush_stream(
+                &mut events,
+                label,
+                istft,
+                last_from,
+                self.geometry,
+                &mut self.hop_out,
+            );
         }
         events
     }
@@ -143,7 +166,12 @@ fn flush_stream(
     let tail_hops = geometry.frame.div_ceil(geometry.hop).saturating_sub(1);
     for i in 0..tail_hops {
         istft.push(&zeros, hop_out);
-        push_chunk(events, label, last_from + ((i + 1) * geometry.hop) as i64, hop_out);
+        push_chunk(
+            events,
+            label,
+            last_from + ((i + 1) * geometry.hop) as i64,
+            hop_out,
+        );
     }
 }
 

@@ -50,7 +50,10 @@ pub struct PipelineStats {
 /// Where track estimates come from.
 enum TrackSource {
     /// The configured tracker, with the routes from inputs to its sensors.
-    Tracker { tracker: Box<dyn Tracker>, routes: SensorRoutes },
+    Tracker {
+        tracker: Box<dyn Tracker>,
+        routes: SensorRoutes,
+    },
     /// The scene's true trajectories (for measuring separation alone).
     Oracle(Truth),
 }
@@ -94,7 +97,9 @@ impl Pipeline {
         } else {
             None
         };
-        let loc_frame = localizer.as_ref().map_or(cfg.localize.frame, Localizer::frame_size);
+        let loc_frame = localizer
+            .as_ref()
+            .map_or(cfg.localize.frame, Localizer::frame_size);
         let separation = if has_audio && cfg.separation {
             Some(SeparationDriver::new(&layout, &cfg.separate)?)
         } else {
@@ -104,8 +109,13 @@ impl Pipeline {
         let history = loc_frame.max(sep_frame) + 4 * clock.step_samples as usize;
         let keyed = sensors_from_layout(&layout, &cfg.track);
         let routes = SensorRoutes::new(&layout, &cfg, keyed.iter().map(|(k, _)| *k).collect());
-        let tracker = build_tracker(&cfg.track, keyed.into_iter().map(|(_, m)| m).collect(), layout.region, seed)
-            .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+        let tracker = build_tracker(
+            &cfg.track,
+            keyed.into_iter().map(|(_, m)| m).collect(),
+            layout.region,
+            seed,
+        )
+        .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
         Ok(Self {
             clock,
             seed,
@@ -114,8 +124,12 @@ impl Pipeline {
             loc_stft: Stft::new(loc_frame),
             loc_spectra: MultiSpectrum::zeros(layout.channel_count(), loc_frame / 2 + 1),
             frame_buf: vec![0.0; loc_frame.max(sep_frame)],
-            cameras: (0..layout.cameras.len()).map(|_| SensorQueue::default()).collect(),
-            devices: (0..layout.arrays.len()).map(|_| SensorQueue::default()).collect(),
+            cameras: (0..layout.cameras.len())
+                .map(|_| SensorQueue::default())
+                .collect(),
+            devices: (0..layout.arrays.len())
+                .map(|_| SensorQueue::default())
+                .collect(),
             next_step: 0,
             source: TrackSource::Tracker { tracker, routes },
             timeline: Timeline::default(),
@@ -195,12 +209,20 @@ impl Pipeline {
             return self.reject(e);
         }
         if self.finishing {
-            return self.reject(InputError::new("finished", "first_sample", "the session's input has ended"));
+            return self.reject(InputError::new(
+                "finished",
+                "first_sample",
+                "the session's input has ended",
+            ));
         }
         let max_gap = (self.cfg.max_gap_s * self.clock.sample_rate as f64) as u64;
         let sr = self.clock.sample_rate as f64;
         let Some(audio) = self.audio.as_mut() else {
-            return self.reject(InputError::new("no_audio", "channels", "this session has no audio channels"));
+            return self.reject(InputError::new(
+                "no_audio",
+                "channels",
+                "this session has no audio channels",
+            ));
         };
         let expected = audio.end();
         let mut events = Vec::new();
@@ -223,7 +245,9 @@ impl Pipeline {
             self.stats.samples_bridged += gap;
             events.push(PipelineEvent::Warning {
                 code: "gap_bridged",
-                message: format!("{gap} missing samples before sample {first_sample} replaced by silence"),
+                message: format!(
+                    "{gap} missing samples before sample {first_sample} replaced by silence"
+                ),
             });
         }
         audio.append_interleaved(samples);
@@ -233,19 +257,30 @@ impl Pipeline {
     }
 
     /// Accepts one camera frame. Frames whose step already ran are refused as late.
-    pub fn push_detections(&mut self, mut frame: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError> {
-        let last = self.cameras.get(frame.camera).map_or(f64::NEG_INFINITY, SensorQueue::last_time);
+    pub fn push_detections(
+        &mut self,
+        mut frame: DetectionFrame,
+    ) -> Result<Vec<PipelineEvent>, InputError> {
+        let last = self
+            .cameras
+            .get(frame.camera)
+            .map_or(f64::NEG_INFINITY, SensorQueue::last_time);
         if let Err(e) = input::check_detections(&self.layout, &frame, last) {
             return self.reject(e);
         }
         let step_start = self.clock.step_bounds(self.next_step).0;
         if frame.t < step_start {
             self.stats.late_frames += 1;
-            let msg = format!("frame at {} s arrived after its tracker step ran (now at {step_start} s)", frame.t);
+            let msg = format!(
+                "frame at {} s arrived after its tracker step ran (now at {step_start} s)",
+                frame.t
+            );
             return self.reject(InputError::new("late", "t", msg));
         }
         let min_score = self.cfg.min_box_score;
-        frame.boxes.retain(|b| b.score.is_none_or(|s| s >= min_score));
+        frame
+            .boxes
+            .retain(|b| b.score.is_none_or(|s| s >= min_score));
         self.stats.detection_frames_in += 1;
         self.cameras[frame.camera].push(frame);
         Ok(self.poll())
@@ -256,13 +291,20 @@ impl Pipeline {
         &mut self,
         frame: AudioMeasurementFrame,
     ) -> Result<Vec<PipelineEvent>, InputError> {
-        let last = self.devices.get(frame.array).map_or(f64::NEG_INFINITY, SensorQueue::last_time);
+        let last = self
+            .devices
+            .get(frame.array)
+            .map_or(f64::NEG_INFINITY, SensorQueue::last_time);
         if let Err(e) = input::check_device_measurements(&self.layout, &frame, last) {
             return self.reject(e);
         }
         let step_start = self.clock.step_bounds(self.next_step).0;
         if frame.t < step_start {
-            return self.reject(InputError::new("late", "t", "measurement arrived after its tracker step ran"));
+            return self.reject(InputError::new(
+                "late",
+                "t",
+                "measurement arrived after its tracker step ran",
+            ));
         }
         self.stats.device_frames_in += 1;
         self.devices[frame.array].push(frame);
@@ -281,7 +323,12 @@ impl Pipeline {
         if self.cfg.cameras {
             waited.extend(self.cameras.iter().map(SensorQueue::last_time));
         }
-        waited.extend(self.devices.iter().filter(|d| d.has_reported()).map(SensorQueue::last_time));
+        waited.extend(
+            self.devices
+                .iter()
+                .filter(|d| d.has_reported())
+                .map(SensorQueue::last_time),
+        );
         let horizon = match &self.audio {
             Some(a) => self.clock.time_of(a.end()),
             None => waited.iter().copied().fold(f64::NEG_INFINITY, f64::max),
@@ -310,7 +357,9 @@ impl Pipeline {
             Some(a) => a.end(),
             None => {
                 let cams = self.cameras.iter().map(SensorQueue::last_time);
-                let t_max = cams.chain(self.devices.iter().map(SensorQueue::last_time)).fold(0.0, f64::max);
+                let t_max = cams
+                    .chain(self.devices.iter().map(SensorQueue::last_time))
+                    .fold(0.0, f64::max);
                 (t_max * self.clock.sample_rate as f64).ceil() as u64 + 1
             }
         };
@@ -398,10 +447,12 @@ impl Pipeline {
                 TrackSource::Oracle(truth) => Some(truth),
                 TrackSource::Tracker { .. } => None,
             };
-            events.extend(sep.run_until(audio, end_sample, &self.clock, |t| match oracle {
-                Some(truth) => stages::oracle_targets(truth, t, activity),
-                None => timeline.targets_at(t),
-            }));
+            events.extend(
+                sep.run_until(audio, end_sample, &self.clock, |t| match oracle {
+                    Some(truth) => stages::oracle_targets(truth, t, activity),
+                    None => timeline.targets_at(t),
+                }),
+            );
         }
     }
 
@@ -415,12 +466,19 @@ impl Pipeline {
             if audio.read(ch, from, &mut self.frame_buf[..n]).is_err() {
                 return Vec::new();
             }
-            self.loc_stft.forward(&self.frame_buf[..n], self.loc_spectra.channel_mut(ch));
+            self.loc_stft
+                .forward(&self.frame_buf[..n], self.loc_spectra.channel_mut(ch));
         }
         localizer.process(&self.loc_spectra)
     }
 
-    fn emit_tracks(&mut self, k: u64, t: f64, estimates: &[Estimate], events: &mut Vec<PipelineEvent>) {
+    fn emit_tracks(
+        &mut self,
+        k: u64,
+        t: f64,
+        estimates: &[Estimate],
+        events: &mut Vec<PipelineEvent>,
+    ) {
         let now: BTreeSet<Label> = estimates.iter().map(|e| e.label).collect();
         for &label in now.difference(&self.live) {
             if self.seen.insert(label) {
@@ -433,7 +491,10 @@ impl Pipeline {
             events.push(PipelineEvent::TrackEnded { t: prev_t, label });
         }
         self.live = now;
-        let line = TracksLine { t, tracks: estimates.iter().map(Estimate::to_file).collect() };
+        let line = TracksLine {
+            t,
+            tracks: estimates.iter().map(Estimate::to_file).collect(),
+        };
         events.push(PipelineEvent::Tracks { step: k, line });
     }
 
@@ -449,14 +510,20 @@ impl Pipeline {
             ));
         }
         if let Some(l) = self.localizer.as_mut() {
-            l.set_layout(&layout).map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?;
+            l.set_layout(&layout)
+                .map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?;
         }
         if let Some(s) = self.separation.as_mut() {
             s.set_layout(&layout)?;
         }
         if let TrackSource::Tracker { tracker, .. } = &mut self.source {
-            let models = sensors_from_layout(&layout, &self.cfg.track).into_iter().map(|(_, m)| m).collect();
-            tracker.set_sensors(models).map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+            let models = sensors_from_layout(&layout, &self.cfg.track)
+                .into_iter()
+                .map(|(_, m)| m)
+                .collect();
+            tracker
+                .set_sensors(models)
+                .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
         }
         self.layout = layout;
         Ok(())

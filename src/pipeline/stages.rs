@@ -39,7 +39,9 @@ impl From<TrackEstimate> for Estimate {
             velocity: e.velocity,
             existence: e.existence,
             speaking: e.speaking,
-            covariance: Some(std::array::from_fn(|r| std::array::from_fn(|col| c[(r, col)]))),
+            covariance: Some(std::array::from_fn(|r| {
+                std::array::from_fn(|col| c[(r, col)])
+            })),
         }
     }
 }
@@ -59,7 +61,8 @@ impl Estimate {
 
     /// Largest position standard deviation (m), 0 when unknown.
     fn position_std(&self) -> f64 {
-        self.covariance.map_or(0.0, |c| c[0][0].max(c[1][1]).max(c[2][2]).max(0.0).sqrt())
+        self.covariance
+            .map_or(0.0, |c| c[0][0].max(c[1][1]).max(c[2][2]).max(0.0).sqrt())
     }
 }
 
@@ -93,7 +96,9 @@ impl Timeline {
     /// Separator targets at time `t`: the latest step's labels, positions interpolated between
     /// the last two steps (extrapolated along the velocity for at most one step past the latest).
     pub fn targets_at(&self, t: f64) -> Vec<Target> {
-        let Some((t1, cur, activity)) = &self.cur else { return Vec::new() };
+        let Some((t1, cur, activity)) = &self.cur else {
+            return Vec::new();
+        };
         let prev: BTreeMap<Label, &Estimate> = match &self.prev {
             Some((_, p)) => p.iter().map(|e| (e.label, e)).collect(),
             None => BTreeMap::new(),
@@ -131,7 +136,11 @@ pub fn measurement_line(layout: &Layout, obs: &ArrayObservation, t: f64) -> Audi
         doas: obs
             .doas
             .iter()
-            .map(|d| DoaFile { azimuth: deg(d.azimuth), elevation: Some(deg(d.elevation)), energy: Some(d.power) })
+            .map(|d| DoaFile {
+                azimuth: deg(d.azimuth),
+                elevation: Some(deg(d.elevation)),
+                energy: Some(d.power),
+            })
             .collect(),
         points: obs.points.iter().map(|p| p.position.into()).collect(),
         activity: Some(obs.activity),
@@ -158,8 +167,12 @@ impl SensorRoutes {
         let n = layout.arrays.len();
         Self {
             positions: (0..n).map(|i| find(SensorKey::ArrayPositions(i))).collect(),
-            directions: (0..n).map(|i| find(SensorKey::ArrayDirections(i))).collect(),
-            cameras: (0..layout.cameras.len()).map(|j| find(SensorKey::Camera(j))).collect(),
+            directions: (0..n)
+                .map(|i| find(SensorKey::ArrayDirections(i)))
+                .collect(),
+            cameras: (0..layout.cameras.len())
+                .map(|j| find(SensorKey::Camera(j)))
+                .collect(),
             localized_positions: layout
                 .arrays
                 .iter()
@@ -185,22 +198,36 @@ impl SensorRoutes {
         for obs in observations {
             let a = obs.array;
             if self.source == AudioMeasurementSource::Device
-                || (self.source == AudioMeasurementSource::Auto && self.device_seen.get(a).copied().unwrap_or(false))
+                || (self.source == AudioMeasurementSource::Auto
+                    && self.device_seen.get(a).copied().unwrap_or(false))
             {
                 continue;
             }
             let (sensor, measurements) = if self.localized_positions[a] {
-                (self.positions[a], obs.points.iter().map(|p| Measurement::Position(p.position)).collect())
+                (
+                    self.positions[a],
+                    obs.points
+                        .iter()
+                        .map(|p| Measurement::Position(p.position))
+                        .collect(),
+                )
             } else {
                 let m = obs
                     .doas
                     .iter()
-                    .map(|d| Measurement::Direction { azimuth: d.azimuth, elevation: Some(d.elevation) })
+                    .map(|d| Measurement::Direction {
+                        azimuth: d.azimuth,
+                        elevation: Some(d.elevation),
+                    })
                     .collect();
                 (self.directions[a], m)
             };
             if let Some(sensor) = sensor {
-                scans.push(Scan { sensor, measurements, activity: Some(obs.activity) });
+                scans.push(Scan {
+                    sensor,
+                    measurements,
+                    activity: Some(obs.activity),
+                });
             }
         }
     }
@@ -222,15 +249,26 @@ impl SensorRoutes {
                 let measurements = f
                     .doas
                     .iter()
-                    .map(|d| Measurement::Direction { azimuth: d.azimuth, elevation: d.elevation })
+                    .map(|d| Measurement::Direction {
+                        azimuth: d.azimuth,
+                        elevation: d.elevation,
+                    })
                     .collect();
-                scans.push(Scan { sensor, measurements, activity: f.activity });
+                scans.push(Scan {
+                    sensor,
+                    measurements,
+                    activity: f.activity,
+                });
             }
             if !f.points.is_empty()
                 && let Some(sensor) = self.positions[a]
             {
                 let measurements = f.points.iter().map(|p| Measurement::Position(*p)).collect();
-                scans.push(Scan { sensor, measurements, activity: f.activity });
+                scans.push(Scan {
+                    sensor,
+                    measurements,
+                    activity: f.activity,
+                });
             }
         }
     }
@@ -239,8 +277,16 @@ impl SensorRoutes {
     pub fn cameras(&self, frames: &[(usize, DetectionFrame)], scans: &mut Vec<Scan>) {
         for (j, f) in frames {
             if let Some(sensor) = self.cameras.get(*j).copied().flatten() {
-                let measurements = f.boxes.iter().map(|b| Measurement::Pixel(b.measurement_point())).collect();
-                scans.push(Scan { sensor, measurements, activity: None });
+                let measurements = f
+                    .boxes
+                    .iter()
+                    .map(|b| Measurement::Pixel(b.measurement_point()))
+                    .collect();
+                scans.push(Scan {
+                    sensor,
+                    measurements,
+                    activity: None,
+                });
             }
         }
     }
@@ -262,7 +308,11 @@ pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
             let h = 0.05;
             let a = s.position_at(t - h).unwrap_or(p);
             let b = s.position_at(t + h).unwrap_or(p);
-            let span = if s.exists_at(t - h) && s.exists_at(t + h) { 2.0 * h } else { h };
+            let span = if s.exists_at(t - h) && s.exists_at(t + h) {
+                2.0 * h
+            } else {
+                h
+            };
             Some(Estimate {
                 label: oracle_label(i),
                 position: p,
@@ -279,6 +329,12 @@ pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
 pub fn oracle_targets(truth: &Truth, t: f64, activity: f64) -> Vec<Target> {
     oracle_estimates(truth, t)
         .into_iter()
-        .map(|e| Target { label: e.label, position: e.position, direction_only: false, speaking: e.speaking, activity })
+        .map(|e| Target {
+            label: e.label,
+            position: e.position,
+            direction_only: false,
+            speaking: e.speaking,
+            activity,
+        })
         .collect()
 }
