@@ -446,7 +446,11 @@ pub async fn listen(
     Ok(got)
 }
 
-async fn drive(mut ws: Ws, feed: &[FeedItem], opts: &StreamOptions) -> Result<Received, ClientError> {
+async fn drive(
+    mut ws: Ws,
+    feed: &[FeedItem],
+    opts: &StreamOptions,
+) -> Result<Received, ClientError> {
     let mut got = Received::default();
     let first = ws
         .next()
@@ -456,7 +460,9 @@ async fn drive(mut ws: Ws, feed: &[FeedItem], opts: &StreamOptions) -> Result<Re
     got.take(first);
     let (sample_rate, step_s) = match &got.welcome {
         Some(ServerMessage::Welcome {
-            sample_rate, step_s, ..
+            sample_rate,
+            step_s,
+            ..
         }) => (f64::from(*sample_rate), *step_s),
         _ => return Err(ClientError("the first message was not a welcome".into())),
     };

@@ -312,7 +312,9 @@ impl SessionHandle {
         let max = self.limits.max_clients_per_session;
         let joined = self
             .clients
-            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| (n < max).then_some(n + 1));
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
+                (n < max).then_some(n + 1)
+            });
         if joined.is_err() {
             return Err(Rejection::new(
                 "too_many_clients",
@@ -344,9 +346,7 @@ impl Session {
 
     /// Life state.
     pub fn state(&self) -> SessionState {
-        self.life
-            .lock()
-            .map_or(SessionState::Failed, |l| l.state)
+        self.life.lock().map_or(SessionState::Failed, |l| l.state)
     }
 
     /// When the session finished or failed, if it did.

@@ -87,7 +87,9 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
     }
     tracing::debug!(session = %session.id(), client = me, "stream opened");
     if session.state() != SessionState::Running {
-        let _ = sink.send(close(session.state(), "the session has ended")).await;
+        let _ = sink
+            .send(close(session.state(), "the session has ended"))
+            .await;
         return;
     }
     loop {

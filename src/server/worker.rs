@@ -28,9 +28,7 @@ pub(super) fn run<E: Engine>(mut engine: E, session: SessionHandle, rx: Receiver
     match catch_unwind(AssertUnwindSafe(|| engine.finish())) {
         Ok(events) => {
             let busy = started.elapsed();
-            session
-                .counters
-                .processed(busy, 0, session.sample_rate());
+            session.counters.processed(busy, 0, session.sample_rate());
             publish(&session, events, started, busy);
             session.close_finished();
             tracing::info!(session = %session.id(), "session finished");
