@@ -458,12 +458,13 @@ async fn drive(
         .ok_or_else(|| ClientError("closed before the welcome".into()))?
         .map_err(cerr)?;
     got.take(first);
-    let (sample_rate, step_s) = match &got.welcome {
+    let (sample_rate, step_s, next_step) = match &got.welcome {
         Some(ServerMessage::Welcome {
             sample_rate,
             step_s,
+            next_step,
             ..
-        }) => (f64::from(*sample_rate), *step_s),
+        }) => (f64::from(*sample_rate), *step_s, *next_step),
         _ => return Err(ClientError("the first message was not a welcome".into())),
     };
     let mut outputs = opts.outputs.clone();
@@ -500,7 +501,13 @@ async fn drive(
             ws.send(Message::text(finish)).await.map_err(cerr)?;
             finished = true;
         }
-        let processed = got.tracks.last().map_or(0, |t| (t.step + 1) * step_samples);
+        // A resuming client paces on the steps that ran before it connected as well: waiting
+        // for a step the session cannot run without more input would stall both.
+        let steps_done = got
+            .tracks
+            .last()
+            .map_or(next_step, |t| (t.step + 1).max(next_step));
+        let processed = steps_done * step_samples;
         let can_send = idx < stop
             && (opts.realtime || sent_audio_end <= processed + max_lead || !is_audio(&feed[idx]));
         let wait = if opts.realtime && idx < stop {

@@ -404,6 +404,15 @@ impl Session {
         self.inbox.lock().map_or(0, |i| i.next_sample)
     }
 
+    /// Index of the next tracker step the pipeline will report (0 before the first).
+    pub fn next_step(&self) -> u64 {
+        self.history
+            .lock()
+            .ok()
+            .and_then(|h| h.back().map(|s| s.step + 1))
+            .unwrap_or(0)
+    }
+
     /// Labels of the tracks that exist now.
     pub fn live_labels(&self) -> Vec<Label> {
         self.live_labels

@@ -166,6 +166,7 @@ fn welcome(s: &SessionHandle) -> ServerMessage {
         arrays: layout.arrays.iter().map(|a| a.id.clone()).collect(),
         cameras: layout.cameras.iter().map(|c| c.id.clone()).collect(),
         next_sample: s.next_sample(),
+        next_step: s.next_step(),
         step_s: s.step_s(),
         audio_delay_samples: s.audio_delay_samples(),
         queue_depth: limits.queue_depth,
