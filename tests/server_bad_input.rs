@@ -4,7 +4,6 @@
 
 mod server_support;
 
-use avsep::protocol::audio_frame::AUDIO_IN_HEADER;
 use avsep::protocol::{AudioFrame, ErrorBody, SampleEncoding};
 use avsep::server::client::{FeedItem, FeedMessage, StreamOptions, http, scene_feed, stream_feed};
 use avsep::server::{Limits, ServerConfig};
@@ -96,9 +95,7 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
         bad_audio(backwards, 5120),
         bad_json("{\"type\": \"detections\", \"t\": 0.4,"),
         bad_json("{\"type\": \"teleport\"}"),
-        bad_json(&format!(
-            "{{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}}"
-        )),
+        bad_json("{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}"),
         bad_json(&format!(
             "{{\"type\":\"detections\",\"t\":0.2,\"camera\":\"{cam}\",\"boxes\":[{{\"x\":10,\"y\":10,\"w\":-5,\"h\":10}}]}}"
         )),

@@ -187,7 +187,7 @@ async fn run_once(
     }
     let feed = std::sync::Arc::new(scene_feed(scene, 1024, SampleEncoding::I16));
     let outputs = OutputSelection {
-        audio: args.audio_out.then(|| AudioSelection {
+        audio: args.audio_out.then_some(AudioSelection {
             format: SampleEncoding::I16,
             labels: None,
         }),

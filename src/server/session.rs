@@ -152,7 +152,10 @@ pub(super) struct Queued {
 pub(super) enum Work {
     Input(Input),
     Recalibrate(Layout, oneshot::Sender<Result<(), ConfigError>>),
-    Configure(PipelineConfig, oneshot::Sender<Result<(), ConfigError>>),
+    Configure(
+        Box<PipelineConfig>,
+        oneshot::Sender<Result<(), ConfigError>>,
+    ),
 }
 
 /// The sending side of the queue, and the audio position it has accepted up to.
@@ -567,7 +570,8 @@ impl Session {
 
     /// Changes settings that can change live (others are refused, naming the field).
     pub async fn configure(&self, settings: PipelineConfig) -> Result<(), ControlError> {
-        self.control(|tx| Work::Configure(settings, tx)).await
+        self.control(|tx| Work::Configure(Box::new(settings), tx))
+            .await
     }
 
     /// Track estimates from `from_step` on (all held when `None`), at most `limit`.

@@ -86,9 +86,9 @@ fn handle<E: Engine>(engine: &mut E, s: &Session, q: Queued) {
             let _ = reply.send(result);
         }
         Work::Configure(settings, reply) => {
-            let result = engine.update_config(settings.clone());
+            let result = engine.update_config((*settings).clone());
             if result.is_ok() {
-                s.set_settings(settings);
+                s.set_settings(*settings);
                 tracing::info!(session = %s.id(), "settings changed");
             }
             let _ = reply.send(result);
