@@ -533,14 +533,16 @@ impl Session {
     /// Ends the input: the worker processes what is queued, flushes, and closes every stream
     /// with `reason`. Later input is refused.
     pub fn finish(&self, reason: &str) {
-        if let Ok(mut inbox) = self.inbox.lock() {
-            inbox.tx = None;
-        }
+        // The reason goes in before the queue closes: the worker may see the closed queue,
+        // flush and read the reason at once.
         if let Ok(mut life) = self.life.lock()
             && life.state == SessionState::Running
         {
             life.state = SessionState::Finishing;
             life.close_reason = reason.to_string();
+        }
+        if let Ok(mut inbox) = self.inbox.lock() {
+            inbox.tx = None;
         }
     }
 
