@@ -6,7 +6,9 @@
 use std::path::PathBuf;
 
 fn check(name: &str, generated: &str) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("api").join(name);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("api")
+        .join(name);
     if std::env::var_os("AVSEP_BLESS").is_some() {
         std::fs::write(&path, generated).unwrap();
         return;
@@ -31,7 +33,10 @@ fn message_and_settings_schemas_are_current() {
         .into_iter()
         .chain(avsep::server::server_schemas());
     for (name, schema) in all {
-        check(name, &(serde_json::to_string_pretty(&schema).unwrap() + "\n"));
+        check(
+            name,
+            &(serde_json::to_string_pretty(&schema).unwrap() + "\n"),
+        );
     }
 }
 
@@ -40,13 +45,22 @@ fn openapi_refers_only_to_schema_files_that_exist() {
     let yaml = avsep::server::openapi::openapi_yaml();
     let api = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("api");
     for line in yaml.lines().filter(|l| l.contains("$ref:")) {
-        let target = line.split("$ref:").nth(1).unwrap().trim().trim_matches('\'').trim_matches('"');
+        let target = line
+            .split("$ref:")
+            .nth(1)
+            .unwrap()
+            .trim()
+            .trim_matches('\'')
+            .trim_matches('"');
         if target.starts_with('#') {
             continue;
         }
         let (file, pointer) = target.split_once('#').unwrap_or((target, ""));
         let doc: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(api.join(file)).unwrap()).unwrap();
-        assert!(pointer.is_empty() || doc.pointer(pointer).is_some(), "{target} does not resolve");
+        assert!(
+            pointer.is_empty() || doc.pointer(pointer).is_some(),
+            "{target} does not resolve"
+        );
     }
 }

@@ -4,7 +4,6 @@
 
 mod server_support;
 
-use avsep::protocol::audio_frame::AUDIO_IN_HEADER;
 use avsep::protocol::{AudioFrame, ErrorBody, SampleEncoding};
 use avsep::server::client::{FeedItem, FeedMessage, StreamOptions, http, scene_feed, stream_feed};
 use avsep::server::{Limits, ServerConfig};
@@ -59,7 +58,12 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
         .position(|i| matches!(i.message, FeedMessage::Audio { end: 5120, .. }))
         .unwrap();
     let cam = &sc.layout.cameras[0].id;
-    let last_det_t = sc.detections.iter().filter(|d| d.t < 5120.0 / 16000.0).map(|d| d.t).fold(0.0, f64::max);
+    let last_det_t = sc
+        .detections
+        .iter()
+        .filter(|d| d.t < 5120.0 / 16000.0)
+        .map(|d| d.t)
+        .fold(0.0, f64::max);
 
     let wrong_channels = AudioFrame {
         first_sample: 5120,
@@ -91,7 +95,7 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
         bad_audio(backwards, 5120),
         bad_json("{\"type\": \"detections\", \"t\": 0.4,"),
         bad_json("{\"type\": \"teleport\"}"),
-        bad_json(&format!("{{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}}")),
+        bad_json("{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}"),
         bad_json(&format!(
             "{{\"type\":\"detections\",\"t\":0.2,\"camera\":\"{cam}\",\"boxes\":[{{\"x\":10,\"y\":10,\"w\":-5,\"h\":10}}]}}"
         )),
@@ -105,20 +109,48 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     with_errors.extend(inserted);
     with_errors.extend(feed[k + 1..].iter().cloned());
 
-    let got = stream_feed(&server.ws_url(&s), &s.token, &with_errors, &StreamOptions::default())
-        .await
-        .unwrap();
+    let got = stream_feed(
+        &server.ws_url(&s),
+        &s.token,
+        &with_errors,
+        &StreamOptions::default(),
+    )
+    .await
+    .unwrap();
     let e = &got.errors;
-    assert!(find(e, "bad_channels", Some("channels")).message.contains("4 channels"));
+    assert!(
+        find(e, "bad_channels", Some("channels"))
+            .message
+            .contains("4 channels")
+    );
     find(e, "truncated", Some("samples"));
     find(e, "truncated", Some("header"));
-    assert!(find(e, "oversized", Some("frame_count")).message.contains("limit"));
-    assert!(find(e, "non_finite", Some("samples")).message.contains("sample 3 of channel 2"));
-    assert!(find(e, "time_backwards", Some("first_sample")).message.contains("5120"));
+    assert!(
+        find(e, "oversized", Some("frame_count"))
+            .message
+            .contains("limit")
+    );
+    assert!(
+        find(e, "non_finite", Some("samples"))
+            .message
+            .contains("sample 3 of channel 2")
+    );
+    assert!(
+        find(e, "time_backwards", Some("first_sample"))
+            .message
+            .contains("5120")
+    );
     find(e, "bad_json", None);
-    let m = e.iter().find(|e| e.code == "bad_message").expect("bad_message");
+    let m = e
+        .iter()
+        .find(|e| e.code == "bad_message")
+        .expect("bad_message");
     assert!(m.message.contains("teleport"), "{m:?}");
-    assert!(find(e, "unknown_camera", Some("camera")).message.contains("cam9"));
+    assert!(
+        find(e, "unknown_camera", Some("camera"))
+            .message
+            .contains("cam9")
+    );
     find(e, "bad_box", Some("boxes[0].w"));
     find(e, "time_backwards", Some("t"));
     assert_eq!(e.len(), 11, "{e:#?}");
@@ -126,9 +158,15 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     // Every refusal left the session untouched: the valid input around them gives exactly the
     // offline result.
     assert_same_tracks(&tracks, &got.tracks);
-    let m = http(&server.host(), "GET", &format!("/v1/sessions/{}/metrics", s.id), Some(&s.token), None)
-        .await
-        .unwrap();
+    let m = http(
+        &server.host(),
+        "GET",
+        &format!("/v1/sessions/{}/metrics", s.id),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
     assert_eq!(m.refused.values().sum::<u64>(), 11, "{:?}", m.refused);
     assert_eq!(m.refused["truncated"], 2);
@@ -154,10 +192,16 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     let body = serde_json::to_vec(&avsep::server::client::create_body(&sc.layout, None)).unwrap();
     let post = |auth: Option<&'static str>, b: Vec<u8>| {
         let host = host.clone();
-        async move { http(&host, "POST", "/v1/sessions", auth, Some(&b)).await.unwrap() }
+        async move {
+            http(&host, "POST", "/v1/sessions", auth, Some(&b))
+                .await
+                .unwrap()
+        }
     };
     let err = |r: &avsep::server::client::HttpResponse| -> ErrorBody {
-        r.json::<avsep::protocol::rest::ErrorResponse>().unwrap().error
+        r.json::<avsep::protocol::rest::ErrorResponse>()
+            .unwrap()
+            .error
     };
 
     // Credentials: missing 401, wrong 403, never data.
@@ -165,7 +209,9 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     assert_eq!((r.status, err(&r).code.as_str()), (401, "unauthorized"));
     let r = post(Some("wrong-key-wrong-key"), body.clone()).await;
     assert_eq!((r.status, err(&r).code.as_str()), (403, "forbidden"));
-    let r = http(&host, "GET", "/v1/sessions", None, None).await.unwrap();
+    let r = http(&host, "GET", "/v1/sessions", None, None)
+        .await
+        .unwrap();
     assert_eq!(r.status, 401);
     assert!(!r.text().contains("sessions\":["));
 
@@ -175,20 +221,33 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
     bad["arrays"][0]["mics"][2] = serde_json::json!([0.0, 0.0]);
     let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
-    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("arrays[0].mics[2]")));
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (422, Some("arrays[0].mics[2]"))
+    );
     let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
     bad["cameras"][0]["projection"] = serde_json::Value::Null;
     let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
-    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("cameras[0].projection")));
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (422, Some("cameras[0].projection"))
+    );
     let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
     bad["settings"] = serde_json::json!({"track": {"survival_probability": 3.0}});
     let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
     assert_eq!(r.status, 422, "{}", r.text());
-    assert_eq!(err(&r).field.as_deref(), Some("settings.track.survival_probability"));
+    assert_eq!(
+        err(&r).field.as_deref(),
+        Some("settings.track.survival_probability")
+    );
     let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
     bad["settings"] = serde_json::json!({"stepsize": 1});
     let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
-    assert!(r.status == 422 && err(&r).message.contains("stepsize"), "{}", r.text());
+    assert!(
+        r.status == 422 && err(&r).message.contains("stepsize"),
+        "{}",
+        r.text()
+    );
     let r = post(Some(key), vec![b' '; 70 << 10]).await;
     assert_eq!((r.status, err(&r).code.as_str()), (413, "too_large"));
 
@@ -197,31 +256,82 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     assert_eq!(r.status, 201);
     let s: avsep::protocol::rest::SessionCreated = r.json().unwrap();
     let path = format!("/v1/sessions/{}", s.id);
-    assert_eq!(http(&host, "GET", &path, Some(&s.token), None).await.unwrap().status, 200);
-    assert_eq!(http(&host, "GET", &path, Some(key), None).await.unwrap().status, 200);
+    assert_eq!(
+        http(&host, "GET", &path, Some(&s.token), None)
+            .await
+            .unwrap()
+            .status,
+        200
+    );
+    assert_eq!(
+        http(&host, "GET", &path, Some(key), None)
+            .await
+            .unwrap()
+            .status,
+        200
+    );
     let r = http(&host, "GET", &path, None, None).await.unwrap();
     assert_eq!(r.status, 401);
-    let r = http(&host, "GET", &path, Some(&s.token[..63]), None).await.unwrap();
+    let r = http(&host, "GET", &path, Some(&s.token[..63]), None)
+        .await
+        .unwrap();
     assert_eq!(r.status, 403);
     assert!(!r.text().contains(&s.id) || err(&r).code == "forbidden");
-    let r = http(&host, "GET", &format!("{path}?token={}", s.token), None, None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        &format!("{path}?token={}", s.token),
+        None,
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 200, "the token also works as a query parameter");
-    let r = http(&host, "GET", "/v1/sessions/0000000000000000", Some(key), None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        "/v1/sessions/0000000000000000",
+        Some(key),
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!((r.status, err(&r).code.as_str()), (404, "not_found"));
-    let r = http(&host, "DELETE", &path, Some(&s.token), None).await.unwrap();
-    assert_eq!(r.status, 403, "deleting needs the admin key when one is configured");
+    let r = http(&host, "DELETE", &path, Some(&s.token), None)
+        .await
+        .unwrap();
+    assert_eq!(
+        r.status, 403,
+        "deleting needs the admin key when one is configured"
+    );
 
     // Streams: wrong or missing token refused before the upgrade.
     let url = format!("ws://{host}{}", s.stream);
-    let e = avsep::server::client::connect(&url, "nope").await.unwrap_err();
+    let e = avsep::server::client::connect(&url, "nope")
+        .await
+        .unwrap_err();
     assert!(e.0.contains("403"), "{e}");
-    let e = tokio_tungstenite::connect_async(url.as_str()).await.unwrap_err();
+    let e = tokio_tungstenite::connect_async(url.as_str())
+        .await
+        .unwrap_err();
     assert!(e.to_string().contains("401"), "{e}");
-    let r = http(&host, "GET", &format!("{path}/stream"), Some(&s.token), None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        &format!("{path}/stream"),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!((r.status, err(&r).code.as_str()), (400, "not_websocket"));
     // One client allowed (limits.max_clients_per_session = 1): the second gets 429.
-    let first = avsep::server::client::connect(&url, &s.token).await.unwrap();
-    let e = avsep::server::client::connect(&url, &s.token).await.unwrap_err();
+    let first = avsep::server::client::connect(&url, &s.token)
+        .await
+        .unwrap();
+    let e = avsep::server::client::connect(&url, &s.token)
+        .await
+        .unwrap_err();
     assert!(e.0.contains("429"), "{e}");
     drop(first);
 
@@ -229,26 +339,70 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     // invalid values 422.
     let put = |p: String, b: serde_json::Value| {
         let (host, token) = (host.clone(), s.token.clone());
-        async move { http(&host, "PUT", &p, Some(&token), Some(&serde_json::to_vec(&b).unwrap())).await.unwrap() }
+        async move {
+            http(
+                &host,
+                "PUT",
+                &p,
+                Some(&token),
+                Some(&serde_json::to_vec(&b).unwrap()),
+            )
+            .await
+            .unwrap()
+        }
     };
-    let r = put(format!("{path}/cameras/cam9"), serde_json::json!({"projection": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]})).await;
+    let r = put(
+        format!("{path}/cameras/cam9"),
+        serde_json::json!({"projection": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}),
+    )
+    .await;
     assert_eq!((r.status, err(&r).field.as_deref()), (404, Some("camera")));
     let a0 = &sc.layout.arrays[0].id;
-    let r = put(format!("{path}/arrays/{a0}"), serde_json::json!({"mics": [[0, 0, 0]]})).await;
+    let r = put(
+        format!("{path}/arrays/{a0}"),
+        serde_json::json!({"mics": [[0, 0, 0]]}),
+    )
+    .await;
     assert_eq!((r.status, err(&r).field.as_deref()), (409, Some("mics")));
     let cam = &sc.layout.cameras[0].id;
-    let r = put(format!("{path}/cameras/{cam}"), serde_json::json!({"rotation": [[1,0,0],[0,1,0],[0,0,1]]})).await;
-    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("translation")));
+    let r = put(
+        format!("{path}/cameras/{cam}"),
+        serde_json::json!({"rotation": [[1,0,0],[0,1,0],[0,0,1]]}),
+    )
+    .await;
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (422, Some("translation"))
+    );
     let patch = |b: serde_json::Value| {
         let (host, token, p) = (host.clone(), s.token.clone(), format!("{path}/settings"));
-        async move { http(&host, "PATCH", &p, Some(&token), Some(&serde_json::to_vec(&b).unwrap())).await.unwrap() }
+        async move {
+            http(
+                &host,
+                "PATCH",
+                &p,
+                Some(&token),
+                Some(&serde_json::to_vec(&b).unwrap()),
+            )
+            .await
+            .unwrap()
+        }
     };
     let r = patch(serde_json::json!({"step_s": 0.064})).await;
-    assert_eq!((r.status, err(&r).code.as_str(), err(&r).field.as_deref()), (409, "not_live", Some("step_s")));
+    assert_eq!(
+        (r.status, err(&r).code.as_str(), err(&r).field.as_deref()),
+        (409, "not_live", Some("step_s"))
+    );
     let r = patch(serde_json::json!({"separate": {"frame": 512}})).await;
-    assert_eq!((r.status, err(&r).field.as_deref()), (409, Some("separate.frame")));
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (409, Some("separate.frame"))
+    );
     let r = patch(serde_json::json!({"camera_wait_s": 9.0})).await;
-    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("camera_wait_s")));
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (422, Some("camera_wait_s"))
+    );
     let r = patch(serde_json::json!({"bogus": 1})).await;
     assert_eq!(r.status, 422);
     assert!(err(&r).message.contains("bogus"));

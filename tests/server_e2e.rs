@@ -12,9 +12,7 @@ use avsep::server::ServerConfig;
 use avsep::server::client::{
     FeedMessage, StreamOptions, http, listen, resume_index, scene_feed, stream_feed,
 };
-use server_support::{
-    TestServer, assert_same_tracks, audio_difference, offline, scene, settings,
-};
+use server_support::{TestServer, assert_same_tracks, audio_difference, offline, scene, settings};
 
 fn with_audio() -> OutputSelection {
     OutputSelection {
@@ -38,9 +36,15 @@ async fn streamed_session_equals_offline_run_fast_and_paced() {
         outputs: with_audio(),
         ..Default::default()
     };
-    let got = stream_feed(&server.ws_url(&s), &s.token, &feed, &opts).await.unwrap();
+    let got = stream_feed(&server.ws_url(&s), &s.token, &feed, &opts)
+        .await
+        .unwrap();
     assert!(got.errors.is_empty(), "{:?}", got.errors);
-    assert_eq!(got.close.as_ref().map(|c| c.0), Some(1000), "closed normally after finish");
+    assert_eq!(
+        got.close.as_ref().map(|c| c.0),
+        Some(1000),
+        "closed normally after finish"
+    );
     assert_same_tracks(&tracks, &got.tracks);
     let n = sc.audio.as_ref().unwrap().frames();
     assert_eq!(audio_difference(&audio, &got.audio_by_label(n)), 0.0);
@@ -56,18 +60,33 @@ async fn streamed_session_equals_offline_run_fast_and_paced() {
         ..Default::default()
     };
     let t0 = std::time::Instant::now();
-    let got = stream_feed(&server.ws_url(&s), &s.token, &feed, &opts).await.unwrap();
-    assert!(t0.elapsed() >= Duration::from_millis(1900), "paced in real time");
+    let got = stream_feed(&server.ws_url(&s), &s.token, &feed, &opts)
+        .await
+        .unwrap();
+    assert!(
+        t0.elapsed() >= Duration::from_millis(1900),
+        "paced in real time"
+    );
     assert!(got.errors.is_empty(), "{:?}", got.errors);
     assert_same_tracks(&tracks, &got.tracks);
     let n = sc.audio.as_ref().unwrap().frames();
     assert_eq!(audio_difference(&audio, &got.audio_by_label(n)), 0.0);
-    let m = http(&server.host(), "GET", &format!("/v1/sessions/{}/metrics", s.id), Some(&s.token), None)
-        .await
-        .unwrap();
+    let m = http(
+        &server.host(),
+        "GET",
+        &format!("/v1/sessions/{}/metrics", s.id),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
     assert_eq!(m.steps as usize, tracks.len());
-    assert!(m.step_latency_ms.count > 0 && m.step_latency_ms.p99 < 128.0, "{:?}", m.step_latency_ms);
+    assert!(
+        m.step_latency_ms.count > 0 && m.step_latency_ms.p99 < 128.0,
+        "{:?}",
+        m.step_latency_ms
+    );
     assert!(m.refused.is_empty(), "{:?}", m.refused);
     server.stop().await;
 }
@@ -81,7 +100,10 @@ async fn concurrent_sessions_stay_isolated() {
     let (tb, ab) = offline(&b, settings(2));
     let sa = server.create(&a, settings(1), None).await;
     let sb = server.create(&b, settings(2), None).await;
-    let (fa, fb) = (scene_feed(&a, 1024, SampleEncoding::F32), scene_feed(&b, 1024, SampleEncoding::F32));
+    let (fa, fb) = (
+        scene_feed(&a, 1024, SampleEncoding::F32),
+        scene_feed(&b, 1024, SampleEncoding::F32),
+    );
     let opts = StreamOptions {
         outputs: with_audio(),
         ..Default::default()
@@ -94,12 +116,24 @@ async fn concurrent_sessions_stay_isolated() {
     let (ra, rb) = (ra.unwrap(), rb.unwrap());
     assert_same_tracks(&ta, &ra.tracks);
     assert_same_tracks(&tb, &rb.tracks);
-    assert_eq!(audio_difference(&aa, &ra.audio_by_label(a.audio.as_ref().unwrap().frames())), 0.0);
-    assert_eq!(audio_difference(&ab, &rb.audio_by_label(b.audio.as_ref().unwrap().frames())), 0.0);
+    assert_eq!(
+        audio_difference(&aa, &ra.audio_by_label(a.audio.as_ref().unwrap().frames())),
+        0.0
+    );
+    assert_eq!(
+        audio_difference(&ab, &rb.audio_by_label(b.audio.as_ref().unwrap().frames())),
+        0.0
+    );
     // A token opens its own session only.
-    let r = http(&server.host(), "GET", &format!("/v1/sessions/{}", sb.id), Some(&sa.token), None)
-        .await
-        .unwrap();
+    let r = http(
+        &server.host(),
+        "GET",
+        &format!("/v1/sessions/{}", sb.id),
+        Some(&sa.token),
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 403);
     server.stop().await;
 }
@@ -116,7 +150,16 @@ async fn reconnecting_client_resumes_its_session() {
     let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
     let listener = {
         let (url, token) = (url.clone(), s.token.clone());
-        tokio::spawn(async move { listen(&url, &token, with_audio(), Duration::from_secs(120), Some(ready_tx)).await })
+        tokio::spawn(async move {
+            listen(
+                &url,
+                &token,
+                with_audio(),
+                Duration::from_secs(120),
+                Some(ready_tx),
+            )
+            .await
+        })
     };
     ready_rx.await.unwrap();
 
@@ -140,7 +183,9 @@ async fn reconnecting_client_resumes_its_session() {
     // history; the rest of the stream follows on the new connection.
     tokio::time::sleep(Duration::from_millis(300)).await;
     let resume = StreamOptions::default();
-    let mut ws = avsep::server::client::connect(&url, &s.token).await.unwrap();
+    let mut ws = avsep::server::client::connect(&url, &s.token)
+        .await
+        .unwrap();
     use futures_util::StreamExt;
     let welcome = ws.next().await.unwrap().unwrap();
     drop(ws);
@@ -152,10 +197,15 @@ async fn reconnecting_client_resumes_its_session() {
         FeedMessage::Audio { end, .. } => *end,
         _ => unreachable!(),
     };
-    assert_eq!(next_sample, expected_end, "welcome.next_sample is where the source stopped");
+    assert_eq!(
+        next_sample, expected_end,
+        "welcome.next_sample is where the source stopped"
+    );
     let from = resume_index(&feed, next_sample);
     assert_eq!(from, half);
-    let part2 = stream_feed(&url, &s.token, &feed, &StreamOptions { from, ..resume }).await.unwrap();
+    let part2 = stream_feed(&url, &s.token, &feed, &StreamOptions { from, ..resume })
+        .await
+        .unwrap();
     assert!(part2.errors.is_empty(), "{:?}", part2.errors);
 
     // What the source saw, with the gap filled from the history, is the offline run.

@@ -34,7 +34,14 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     let listener = {
         let (url, token) = (url.clone(), s.token.clone());
         tokio::spawn(async move {
-            listen(&url, &token, OutputSelection::default(), Duration::from_secs(120), Some(ready_tx)).await
+            listen(
+                &url,
+                &token,
+                OutputSelection::default(),
+                Duration::from_secs(120),
+                Some(ready_tx),
+            )
+            .await
         })
     };
     ready_rx.await.unwrap();
@@ -54,7 +61,15 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     // Let the pipeline catch up with what was sent.
     let mut before: Option<TracksSnapshot> = None;
     for _ in 0..100 {
-        let r = http(&host, "GET", &format!("{path}/tracks"), Some(&s.token), None).await.unwrap();
+        let r = http(
+            &host,
+            "GET",
+            &format!("{path}/tracks"),
+            Some(&s.token),
+            None,
+        )
+        .await
+        .unwrap();
         if r.status == 200 {
             let t: TracksSnapshot = r.json().unwrap();
             if t.step + 1 >= 24576 / 2048 - 2 {
@@ -65,20 +80,39 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
     let before = before.expect("the pipeline ran the steps of the first half");
-    assert!(!before.tracks.is_empty(), "tracks exist before the recalibration");
+    assert!(
+        !before.tracks.is_empty(),
+        "tracks exist before the recalibration"
+    );
 
     // Move the array by 1 cm: applied at the next step, tracks kept.
     let a0 = &sc.layout.arrays[0];
     let moved: Vec<[f64; 3]> = a0.mics.iter().map(|m| [m.x + 0.01, m.y, m.z]).collect();
     let body = serde_json::to_vec(&serde_json::json!({ "mics": moved })).unwrap();
-    let r = http(&host, "PUT", &format!("{path}/arrays/{}", a0.id), Some(&s.token), Some(&body)).await.unwrap();
+    let r = http(
+        &host,
+        "PUT",
+        &format!("{path}/arrays/{}", a0.id),
+        Some(&s.token),
+        Some(&body),
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 200, "{}", r.text());
     let info: SessionInfo = r.json().unwrap();
     assert_eq!(info.arrays[0].mics, moved);
     // The camera: same projection as a 3x4 matrix, then as K, R, t.
     let cam = &info.cameras[0];
     let body = serde_json::to_vec(&serde_json::json!({ "projection": cam.projection })).unwrap();
-    let r = http(&host, "PUT", &format!("{path}/cameras/{}", cam.id), Some(&s.token), Some(&body)).await.unwrap();
+    let r = http(
+        &host,
+        "PUT",
+        &format!("{path}/cameras/{}", cam.id),
+        Some(&s.token),
+        Some(&body),
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 200, "{}", r.text());
 
     // Settings that can change live.
@@ -88,12 +122,28 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         "separate": {"post_filter": {"gain_floor": 0.2}}
     });
     let body = serde_json::to_vec(&patch).unwrap();
-    let r = http(&host, "PATCH", &format!("{path}/settings"), Some(&s.token), Some(&body)).await.unwrap();
+    let r = http(
+        &host,
+        "PATCH",
+        &format!("{path}/settings"),
+        Some(&s.token),
+        Some(&body),
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 200, "{}", r.text());
     let now: PipelineConfig = r.json().unwrap();
     assert_eq!((now.camera_wait_s, now.track.camera.p_detect), (0.2, 0.8));
     assert_eq!(now.separate.post_filter.gain_floor, 0.2);
-    let r = http(&host, "GET", &format!("{path}/settings"), Some(&s.token), None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        &format!("{path}/settings"),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!(r.json::<PipelineConfig>().unwrap(), now);
 
     // The rest of the scene; the tracks alive before go on after the recalibration.
@@ -104,31 +154,81 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     let rest = stream_feed(&url, &s.token, &feed, &opts).await.unwrap();
     assert!(rest.errors.is_empty(), "{:?}", rest.errors);
     let heard = listener.await.unwrap().unwrap();
-    let after = heard.tracks.iter().find(|t| t.step > before.step + 1).unwrap();
-    let kept = before.tracks.iter().filter(|t| after.tracks.iter().any(|u| u.label == t.label)).count();
-    assert!(kept > 0, "labels {:?} before, {:?} after", before.tracks, after.tracks);
-    assert_eq!(heard.tracks.len(), 3 * 16000 / 2048 + 1, "every step was reported");
+    let after = heard
+        .tracks
+        .iter()
+        .find(|t| t.step > before.step + 1)
+        .unwrap();
+    let kept = before
+        .tracks
+        .iter()
+        .filter(|t| after.tracks.iter().any(|u| u.label == t.label))
+        .count();
+    assert!(
+        kept > 0,
+        "labels {:?} before, {:?} after",
+        before.tracks,
+        after.tracks
+    );
+    assert_eq!(
+        heard.tracks.len(),
+        3 * 16000 / 2048 + 1,
+        "every step was reported"
+    );
 
     // History, metrics, Prometheus.
-    let r = http(&host, "GET", &format!("{path}/tracks/history?from_step=3&limit=4"), Some(&s.token), None)
-        .await
-        .unwrap();
+    let r = http(
+        &host,
+        "GET",
+        &format!("{path}/tracks/history?from_step=3&limit=4"),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     let h: TrackHistory = r.json().unwrap();
-    assert_eq!(h.steps.iter().map(|t| t.step).collect::<Vec<_>>(), vec![3, 4, 5, 6]);
+    assert_eq!(
+        h.steps.iter().map(|t| t.step).collect::<Vec<_>>(),
+        vec![3, 4, 5, 6]
+    );
     assert_eq!(h.oldest_step, Some(0));
     assert_eq!(h.steps, heard.tracks[3..7].to_vec());
-    let r = http(&host, "GET", &format!("{path}/tracks/history?limit=x"), Some(&s.token), None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        &format!("{path}/tracks/history?limit=x"),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 400);
-    let r = http(&host, "GET", &format!("{path}/metrics"), Some(&s.token), None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        &format!("{path}/metrics"),
+        Some(&s.token),
+        None,
+    )
+    .await
+    .unwrap();
     let m: SessionMetrics = r.json().unwrap();
-    let audio_frames = feed.iter().filter(|i| matches!(i.message, FeedMessage::Audio { .. })).count() as u64;
+    let audio_frames = feed
+        .iter()
+        .filter(|i| matches!(i.message, FeedMessage::Audio { .. }))
+        .count() as u64;
     assert_eq!(m.frames_in.audio, audio_frames);
     assert_eq!(m.frames_in.detections, sc.detections.len() as u64);
     assert_eq!(m.steps as usize, heard.tracks.len());
     assert!(m.real_time_factor > 0.0 && m.step_processing_ms.p50 > 0.0);
     let r = http(&host, "GET", "/metrics", None, None).await.unwrap();
     let text = r.text();
-    assert!(text.contains(&format!("avsep_frames_in_total{{kind=\"audio\"}} {audio_frames}")), "{text}");
+    assert!(
+        text.contains(&format!(
+            "avsep_frames_in_total{{kind=\"audio\"}} {audio_frames}"
+        )),
+        "{text}"
+    );
     assert!(text.contains("avsep_sessions{state=\"finished\"} 1"));
     assert!(text.contains("avsep_process_resident_memory_bytes"));
 
@@ -138,12 +238,20 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         "OPTIONS /v1/sessions HTTP/1.1\r\nHost: x\r\nOrigin: http://example.org\r\nAccess-Control-Request-Method: POST\r\nConnection: close\r\n\r\n",
     )
     .await;
-    assert!(raw.to_ascii_lowercase().contains("access-control-allow-origin: http://example.org"), "{raw}");
+    assert!(
+        raw.to_ascii_lowercase()
+            .contains("access-control-allow-origin: http://example.org"),
+        "{raw}"
+    );
 
     // Deletion: 204, then gone.
-    let r = http(&host, "DELETE", &path, Some(&s.token), None).await.unwrap();
+    let r = http(&host, "DELETE", &path, Some(&s.token), None)
+        .await
+        .unwrap();
     assert_eq!(r.status, 204);
-    let r = http(&host, "GET", &path, Some(&s.token), None).await.unwrap();
+    let r = http(&host, "GET", &path, Some(&s.token), None)
+        .await
+        .unwrap();
     assert_eq!(r.status, 404);
 
     // A running session that is deleted closes its streams normally after flushing.
@@ -151,14 +259,32 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     let (url2, token2) = (server.ws_url(&s2), s2.token.clone());
     let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
     let l2 = tokio::spawn(async move {
-        listen(&url2, &token2, OutputSelection::default(), Duration::from_secs(60), Some(ready_tx)).await
+        listen(
+            &url2,
+            &token2,
+            OutputSelection::default(),
+            Duration::from_secs(60),
+            Some(ready_tx),
+        )
+        .await
     });
     ready_rx.await.unwrap();
-    let list: avsep::protocol::rest::SessionList =
-        http(&host, "GET", "/v1/sessions", None, None).await.unwrap().json().unwrap();
+    let list: avsep::protocol::rest::SessionList = http(&host, "GET", "/v1/sessions", None, None)
+        .await
+        .unwrap()
+        .json()
+        .unwrap();
     assert_eq!(list.sessions.len(), 1);
     assert_eq!(list.sessions[0].clients, 1);
-    let r = http(&host, "DELETE", &format!("/v1/sessions/{}", s2.id), Some(&s2.token), None).await.unwrap();
+    let r = http(
+        &host,
+        "DELETE",
+        &format!("/v1/sessions/{}", s2.id),
+        Some(&s2.token),
+        None,
+    )
+    .await
+    .unwrap();
     assert_eq!(r.status, 204);
     let heard = l2.await.unwrap().unwrap();
     assert_eq!(heard.close, Some((1000, "session deleted".into())));
@@ -181,14 +307,22 @@ struct Exploding {
 }
 
 impl Engine for Exploding {
-    fn push_audio(&mut self, first: u64, ch: usize, s: &[f32]) -> Result<Vec<PipelineEvent>, InputError> {
+    fn push_audio(
+        &mut self,
+        first: u64,
+        ch: usize,
+        s: &[f32],
+    ) -> Result<Vec<PipelineEvent>, InputError> {
         assert!(first < self.at, "synthetic failure at sample {first}");
         self.inner.push_audio(first, ch, s)
     }
     fn push_detections(&mut self, f: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError> {
         self.inner.push_detections(f)
     }
-    fn push_device_measurements(&mut self, f: AudioMeasurementFrame) -> Result<Vec<PipelineEvent>, InputError> {
+    fn push_device_measurements(
+        &mut self,
+        f: AudioMeasurementFrame,
+    ) -> Result<Vec<PipelineEvent>, InputError> {
         self.inner.push_device_measurements(f)
     }
     fn set_layout(&mut self, l: avsep::geometry::Layout) -> Result<(), ConfigError> {
@@ -221,7 +355,16 @@ async fn a_panicking_pipeline_fails_its_session_only() {
         settings: settings(8),
         limits: server.registry.config().limits.clone(),
     };
-    server.registry.insert(spec, Exploding { inner: pipeline, at: 16000 }).unwrap();
+    server
+        .registry
+        .insert(
+            spec,
+            Exploding {
+                inner: pipeline,
+                at: 16000,
+            },
+        )
+        .unwrap();
     let bad_url = format!("ws://{host}/v1/sessions/badbadbadbadbad0/stream");
     let good = server.create(&sc, settings(8), None).await;
 
@@ -229,7 +372,14 @@ async fn a_panicking_pipeline_fails_its_session_only() {
     let bad_listener = {
         let (url, token) = (bad_url.clone(), token.clone());
         tokio::spawn(async move {
-            listen(&url, &token, OutputSelection::default(), Duration::from_secs(60), Some(ready_tx)).await
+            listen(
+                &url,
+                &token,
+                OutputSelection::default(),
+                Duration::from_secs(60),
+                Some(ready_tx),
+            )
+            .await
         })
     };
     ready_rx.await.unwrap();
@@ -242,25 +392,46 @@ async fn a_panicking_pipeline_fails_its_session_only() {
     );
     // The failing session's streams get an error and a close frame (1011).
     let heard = bad_listener.await.unwrap().unwrap();
-    let e = heard.errors.iter().find(|e| e.code == "session_failed").expect("session_failed");
+    let e = heard
+        .errors
+        .iter()
+        .find(|e| e.code == "session_failed")
+        .expect("session_failed");
     assert!(e.message.contains("synthetic failure"), "{e:?}");
     assert_eq!(heard.close.as_ref().map(|c| c.0), Some(1011));
     // The source is either told and closed, or cut off while sending.
     if let Ok(r) = bad_run {
-        assert!(r.errors.iter().any(|e| e.code == "session_failed"), "{:?}", r.errors);
+        assert!(
+            r.errors.iter().any(|e| e.code == "session_failed"),
+            "{:?}",
+            r.errors
+        );
     }
-    let r = http(&host, "GET", "/v1/sessions/badbadbadbadbad0", Some(&token), None).await.unwrap();
+    let r = http(
+        &host,
+        "GET",
+        "/v1/sessions/badbadbadbadbad0",
+        Some(&token),
+        None,
+    )
+    .await
+    .unwrap();
     let info: SessionInfo = r.json().unwrap();
     assert_eq!(info.state, avsep::protocol::rest::SessionState::Failed);
     assert_eq!(info.error.unwrap().code, "session_failed");
     // New input is refused with a clear error.
-    let e = avsep::server::client::connect(&bad_url, &token).await.unwrap_err();
+    let e = avsep::server::client::connect(&bad_url, &token)
+        .await
+        .unwrap_err();
     assert!(e.0.contains("409"), "{e}");
     // The other session never noticed.
     let good_run = good_run.unwrap();
     assert!(good_run.errors.is_empty(), "{:?}", good_run.errors);
     assert_same_tracks(&tracks, &good_run.tracks);
-    let text = http(&host, "GET", "/metrics", None, None).await.unwrap().text();
+    let text = http(&host, "GET", "/metrics", None, None)
+        .await
+        .unwrap()
+        .text();
     assert!(text.contains("avsep_session_failures_total 1"), "{text}");
     server.stop().await;
 }
@@ -275,24 +446,42 @@ async fn serve_drains_sessions_on_sigterm() {
         .spawn()
         .unwrap();
     let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let host = line.trim().trim_start_matches("listening on http://").to_string();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let host = line
+        .trim()
+        .trim_start_matches("listening on http://")
+        .to_string();
     let sc = scene("uca8", 1.0, 1, 91);
     let body = serde_json::to_vec(&create_body(&sc.layout, Some(settings(2)))).unwrap();
-    let r = http(&host, "POST", "/v1/sessions", None, Some(&body)).await.unwrap();
+    let r = http(&host, "POST", "/v1/sessions", None, Some(&body))
+        .await
+        .unwrap();
     let s: avsep::protocol::rest::SessionCreated = r.json().unwrap();
     let url = format!("ws://{host}{}", s.stream);
     let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
     let listener = {
         let (url, token) = (url.clone(), s.token.clone());
         tokio::spawn(async move {
-            listen(&url, &token, OutputSelection::default(), Duration::from_secs(60), Some(ready_tx)).await
+            listen(
+                &url,
+                &token,
+                OutputSelection::default(),
+                Duration::from_secs(60),
+                Some(ready_tx),
+            )
+            .await
         })
     };
     ready_rx.await.unwrap();
     // The source sends 0.75 s of audio and goes away without finishing.
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
-    let stop = feed.iter().position(|i| matches!(i.message, FeedMessage::Audio { end: 12288, .. })).unwrap() + 1;
+    let stop = feed
+        .iter()
+        .position(|i| matches!(i.message, FeedMessage::Audio { end: 12288, .. }))
+        .unwrap()
+        + 1;
     let opts = StreamOptions {
         disconnect_at: Some(stop),
         ..Default::default()

@@ -107,7 +107,10 @@ pub fn run(args: LoadgenArgs) -> Result<(), CliError> {
         ..Default::default()
     };
     let sim = SimConfig::preset(&args.preset, &opts, args.seed).map_err(CliError::input)?;
-    eprintln!("simulating {:.0} s of the {} preset ...", args.seconds, args.preset);
+    eprintln!(
+        "simulating {:.0} s of the {} preset ...",
+        args.seconds, args.preset
+    );
     let scene = simulate(&sim, args.seed).map_err(CliError::runtime)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -134,10 +137,20 @@ pub fn run(args: LoadgenArgs) -> Result<(), CliError> {
             r.refused,
             r.output_dropped,
             r.mb_per_session,
-            if r.meets_target { "yes" } else if r.holds_real_time { "rt" } else { "no" }
+            if r.meets_target {
+                "yes"
+            } else if r.holds_real_time {
+                "rt"
+            } else {
+                "no"
+            }
         );
     }
-    let best = reports.iter().filter(|r| r.holds_real_time).map(|r| r.sessions).max();
+    let best = reports
+        .iter()
+        .filter(|r| r.holds_real_time)
+        .map(|r| r.sessions)
+        .max();
     match best {
         Some(n) => println!("largest count that held real time: {n}"),
         None => println!("no count held real time"),
@@ -153,20 +166,28 @@ async fn run_once(
 ) -> Result<LoadReport, CliError> {
     let key = args.admin_key.as_deref();
     let rss = |text: &str| prom_value(text, "avsep_process_resident_memory_bytes").unwrap_or(0.0);
-    let before = http(addr, "GET", "/metrics", None, None).await.map_err(CliError::runtime)?;
+    let before = http(addr, "GET", "/metrics", None, None)
+        .await
+        .map_err(CliError::runtime)?;
     let rss0 = rss(&before.text());
     let body = serde_json::to_vec(&create_body(&scene.layout, None)).map_err(CliError::runtime)?;
     let mut sessions: Vec<SessionCreated> = Vec::new();
     for _ in 0..n {
-        let r = http(addr, "POST", "/v1/sessions", key, Some(&body)).await.map_err(CliError::runtime)?;
+        let r = http(addr, "POST", "/v1/sessions", key, Some(&body))
+            .await
+            .map_err(CliError::runtime)?;
         if r.status != 201 {
-            return Err(CliError::runtime(format!("creating a session: HTTP {}: {}", r.status, r.text())));
+            return Err(CliError::runtime(format!(
+                "creating a session: HTTP {}: {}",
+                r.status,
+                r.text()
+            )));
         }
         sessions.push(r.json().map_err(CliError::runtime)?);
     }
     let feed = std::sync::Arc::new(scene_feed(scene, 1024, SampleEncoding::I16));
     let outputs = OutputSelection {
-        audio: args.audio_out.then(|| AudioSelection {
+        audio: args.audio_out.then_some(AudioSelection {
             format: SampleEncoding::I16,
             labels: None,
         }),
@@ -183,7 +204,9 @@ async fn run_once(
     for s in &sessions {
         let url = format!("ws://{addr}{}", s.stream);
         let (token, feed, opts) = (s.token.clone(), feed.clone(), opts.clone());
-        tasks.push(tokio::spawn(async move { stream_feed(&url, &token, &feed, &opts).await }));
+        tasks.push(tokio::spawn(async move {
+            stream_feed(&url, &token, &feed, &opts).await
+        }));
     }
     // Sample the server's memory while the streams run.
     let mut peak = rss0;
@@ -204,10 +227,13 @@ async fn run_once(
             _ => complete = false,
         }
     }
-    let (mut p99s, mut rtfs, mut max_ms, mut refused, mut dropped) = (Vec::new(), Vec::new(), 0.0f64, 0, 0);
+    let (mut p99s, mut rtfs, mut max_ms, mut refused, mut dropped) =
+        (Vec::new(), Vec::new(), 0.0f64, 0, 0);
     for s in &sessions {
         let path = format!("/v1/sessions/{}/metrics", s.id);
-        let r = http(addr, "GET", &path, Some(&s.token), None).await.map_err(CliError::runtime)?;
+        let r = http(addr, "GET", &path, Some(&s.token), None)
+            .await
+            .map_err(CliError::runtime)?;
         let m: SessionMetrics = r.json().map_err(CliError::runtime)?;
         p99s.push(m.step_latency_ms.p99);
         rtfs.push(m.real_time_factor);

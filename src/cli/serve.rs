@@ -100,7 +100,12 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
         if shown.admin_key.is_some() {
             shown.admin_key = Some("<hidden>".into());
         }
-        println!("{}", documented_toml(&shown).map_err(CliError::runtime)?.trim_end());
+        println!(
+            "{}",
+            documented_toml(&shown)
+                .map_err(CliError::runtime)?
+                .trim_end()
+        );
         return Ok(());
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -116,7 +121,10 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
         tracing::info!(%addr, admin_key = cfg.admin_key.is_some(), "avsep serving");
         // Scripts and tests read the address from stdout (the port may have been 0).
         println!("listening on http://{addr}");
-        server.run(shutdown_signal()).await.map_err(CliError::runtime)
+        server
+            .run(shutdown_signal())
+            .await
+            .map_err(CliError::runtime)
     })?;
     tracing::info!("stopped");
     Ok(())

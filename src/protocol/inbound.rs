@@ -97,8 +97,8 @@ pub fn device_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::format::DoaFile;
     use crate::geometry::{Camera, MicArray};
+    use crate::scene::format::DoaFile;
     use nalgebra::Matrix3;
 
     /// A four-microphone square array and one camera at the origin looking along +z.
@@ -109,9 +109,16 @@ mod tests {
             .collect();
         let array = MicArray::new("a0", mics, vec![0, 1, 2, 3]).unwrap();
         let k = Matrix3::new(500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0);
-        let cam =
-            Camera::from_krt("cam0", 640.0, 480.0, k, Matrix3::identity(), Vec3::zeros(), None)
-                .unwrap();
+        let cam = Camera::from_krt(
+            "cam0",
+            640.0,
+            480.0,
+            k,
+            Matrix3::identity(),
+            Vec3::zeros(),
+            None,
+        )
+        .unwrap();
         Layout::new(16_000, 343.0, vec![array], vec![cam], None).unwrap()
     }
 

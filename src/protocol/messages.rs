@@ -133,6 +133,10 @@ pub enum ServerMessage {
         cameras: Vec<String>,
         /// Index of the next audio sample frame the session expects.
         next_sample: u64,
+        /// Index of the next tracker step the session will report: the steps before it have
+        /// run (a resuming client finds their estimates in the track history).
+        #[serde(default)]
+        next_step: u64,
         /// Tracker step period (s).
         step_s: f64,
         /// Separated audio lags the input by at most one step plus this many samples.

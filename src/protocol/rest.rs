@@ -26,11 +26,17 @@ fn scene_def(name: &str) -> Ref {
 }
 
 fn arrays_schema() -> RefOr<Schema> {
-    ArrayBuilder::new().items(scene_def("ArrayFile")).build().into()
+    ArrayBuilder::new()
+        .items(scene_def("ArrayFile"))
+        .build()
+        .into()
 }
 
 fn cameras_schema() -> RefOr<Schema> {
-    ArrayBuilder::new().items(scene_def("CameraFile")).build().into()
+    ArrayBuilder::new()
+        .items(scene_def("CameraFile"))
+        .build()
+        .into()
 }
 
 fn region_schema() -> RefOr<Schema> {
@@ -90,9 +96,7 @@ pub struct CreateSession {
 }
 
 /// Life of a session.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema, ToSchema,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, JsonSchema, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SessionState {
     /// Accepting input.

@@ -135,7 +135,10 @@ impl Server {
     /// Serves until `shutdown` resolves, then drains: new sessions are refused, every session
     /// finishes its pipeline and closes its streams (within `drain_timeout_s`), and the
     /// listener stops.
-    pub async fn run(self, shutdown: impl Future<Output = ()> + Send + 'static) -> std::io::Result<()> {
+    pub async fn run(
+        self,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> std::io::Result<()> {
         let registry = self.registry.clone();
         let reaper = {
             let registry = registry.clone();

@@ -36,8 +36,7 @@ pub fn new_session_id() -> String {
 /// Whether two secrets are equal, in time independent of where they differ.
 pub fn same_secret(expected: &str, presented: &str) -> bool {
     // Lengths are not secret (tokens have a fixed length); contents are compared in constant time.
-    expected.len() == presented.len()
-        && bool::from(expected.as_bytes().ct_eq(presented.as_bytes()))
+    expected.len() == presented.len() && bool::from(expected.as_bytes().ct_eq(presented.as_bytes()))
 }
 
 /// The credential a request presents: the bearer token of the `Authorization` header, else the
@@ -123,11 +122,18 @@ mod tests {
     fn credentials_come_from_the_header_or_the_query() {
         let mut h = HeaderMap::new();
         assert_eq!(presented(&h, None), None);
-        assert_eq!(presented(&h, Some("a=1&token=abc%2Bd")).as_deref(), Some("abc+d"));
+        assert_eq!(
+            presented(&h, Some("a=1&token=abc%2Bd")).as_deref(),
+            Some("abc+d")
+        );
         h.insert(AUTHORIZATION, HeaderValue::from_static("Bearer  xyz "));
         assert_eq!(presented(&h, Some("token=abc")).as_deref(), Some("xyz"));
         h.insert(AUTHORIZATION, HeaderValue::from_static("Basic Zm9v"));
-        assert_eq!(presented(&h, None).as_deref(), Some(""), "a wrong scheme is a wrong credential");
+        assert_eq!(
+            presented(&h, None).as_deref(),
+            Some(""),
+            "a wrong scheme is a wrong credential"
+        );
         assert_eq!(percent_decode("100%"), "100%");
     }
 }

@@ -54,7 +54,10 @@ fn running(s: &SessionHandle) -> Result<(), ApiError> {
         state => Err(ApiError::new(
             StatusCode::CONFLICT,
             "session_closed",
-            format!("the session is {}; it takes no more changes", state.as_str()),
+            format!(
+                "the session is {}; it takes no more changes",
+                state.as_str()
+            ),
         )),
     }
 }
@@ -219,9 +222,8 @@ pub(super) async fn patch_settings(
             "the body must be a JSON object (a merge patch over the settings)",
         ));
     }
-    let mut merged = serde_json::to_value(s.settings()).map_err(|e| {
-        ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", e.to_string())
-    })?;
+    let mut merged = serde_json::to_value(s.settings())
+        .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", e.to_string()))?;
     merge_patch(&mut merged, &patch);
     let text = merged.to_string();
     let settings: PipelineConfig = parse_json(text.as_bytes())?;
@@ -258,7 +260,10 @@ mod tests {
     #[test]
     fn merge_patch_follows_rfc_7386() {
         let mut t = json!({"a": 1, "b": {"c": 2, "d": 3}, "e": [1]});
-        merge_patch(&mut t, &json!({"b": {"c": 5, "d": null}, "e": [2, 3], "f": true}));
+        merge_patch(
+            &mut t,
+            &json!({"b": {"c": 5, "d": null}, "e": [2, 3], "f": true}),
+        );
         assert_eq!(t, json!({"a": 1, "b": {"c": 5}, "e": [2, 3], "f": true}));
     }
 }

@@ -446,7 +446,11 @@ pub async fn listen(
     Ok(got)
 }
 
-async fn drive(mut ws: Ws, feed: &[FeedItem], opts: &StreamOptions) -> Result<Received, ClientError> {
+async fn drive(
+    mut ws: Ws,
+    feed: &[FeedItem],
+    opts: &StreamOptions,
+) -> Result<Received, ClientError> {
     let mut got = Received::default();
     let first = ws
         .next()
@@ -454,10 +458,13 @@ async fn drive(mut ws: Ws, feed: &[FeedItem], opts: &StreamOptions) -> Result<Re
         .ok_or_else(|| ClientError("closed before the welcome".into()))?
         .map_err(cerr)?;
     got.take(first);
-    let (sample_rate, step_s) = match &got.welcome {
+    let (sample_rate, step_s, next_step) = match &got.welcome {
         Some(ServerMessage::Welcome {
-            sample_rate, step_s, ..
-        }) => (f64::from(*sample_rate), *step_s),
+            sample_rate,
+            step_s,
+            next_step,
+            ..
+        }) => (f64::from(*sample_rate), *step_s, *next_step),
         _ => return Err(ClientError("the first message was not a welcome".into())),
     };
     let mut outputs = opts.outputs.clone();
@@ -494,7 +501,13 @@ async fn drive(mut ws: Ws, feed: &[FeedItem], opts: &StreamOptions) -> Result<Re
             ws.send(Message::text(finish)).await.map_err(cerr)?;
             finished = true;
         }
-        let processed = got.tracks.last().map_or(0, |t| (t.step + 1) * step_samples);
+        // A resuming client paces on the steps that ran before it connected as well: waiting
+        // for a step the session cannot run without more input would stall both.
+        let steps_done = got
+            .tracks
+            .last()
+            .map_or(next_step, |t| (t.step + 1).max(next_step));
+        let processed = steps_done * step_samples;
         let can_send = idx < stop
             && (opts.realtime || sent_audio_end <= processed + max_lead || !is_audio(&feed[idx]));
         let wait = if opts.realtime && idx < stop {
@@ -545,5 +558,62 @@ mod tests {
         )
         .unwrap();
         assert_eq!(r.text(), "abcde");
+    }
+
+    /// A session computes bit for bit what the offline run computes only if the layout and the
+    /// side messages reach it unchanged. -231.29575740048358 (the projection of the uca8
+    /// preset's camera) is one the default serde_json parser reads one ulp off.
+    #[test]
+    fn layouts_and_feed_messages_cross_the_wire_bit_for_bit() {
+        use crate::geometry::{Camera, MicArray, Vec3};
+        use crate::scene::convert::layout_from_file;
+        use crate::scene::format::{SCENE_FORMAT, SceneFile};
+        use nalgebra::Matrix3x4;
+
+        #[rustfmt::skip]
+        let p = Matrix3x4::new(
+            640.0000000000001, 596.7430540932476, -231.29575740048358, -1482.7585002101262,
+            0.0, 104.3722105269681, -726.8469176310197, 1586.538553525007,
+            0.0, 0.9324110220206993, -0.3613996209382556, 0.6831898434216785,
+        );
+        let cam = Camera::from_projection("cam0", 1280.0, 720.0, p, None, None).unwrap();
+        let mics = (0..4)
+            .map(|i| {
+                let a = f64::from(i) * std::f64::consts::FRAC_PI_2 + 0.1;
+                Vec3::new(3.0 + 0.05 * a.cos(), 2.5 + 0.05 * a.sin(), 0.75)
+            })
+            .collect();
+        let array = MicArray::new("a0", mics, vec![0, 1, 2, 3]).unwrap();
+        let layout = Layout::new(16_000, 343.0, vec![array], vec![cam], None).unwrap();
+        let text = serde_json::to_string(&create_body(&layout, None)).unwrap();
+        let body: CreateSession = serde_json::from_str(&text).unwrap();
+        let file = SceneFile {
+            format: SCENE_FORMAT.into(),
+            sample_rate: body.sample_rate,
+            speed_of_sound: body.speed_of_sound,
+            audio: None,
+            arrays: body.arrays,
+            cameras: body.cameras,
+            region: body.region,
+            detections: None,
+            audio_measurements: None,
+            truth: None,
+        };
+        assert_eq!(layout_from_file(&file).unwrap(), layout);
+
+        let sent = ClientMessage::Detections {
+            t: 0.1 + 0.2,
+            camera: "cam0".into(),
+            boxes: vec![BoxFile {
+                x: -231.29575740048358,
+                y: 1.0 / 3.0,
+                w: 2.0f64.sqrt(),
+                h: 1e-7 / 3.0,
+                score: Some(0.9324110220206993),
+                point: None,
+            }],
+        };
+        let text = serde_json::to_string(&sent).unwrap();
+        assert_eq!(crate::server::stream::parse_message(&text).unwrap(), sent);
     }
 }

@@ -105,7 +105,10 @@ impl ServerConfig {
         if self.bind.parse::<std::net::SocketAddr>().is_err() {
             return Err(ConfigError::new(
                 "bind",
-                format!("{:?} is not an ADDRESS:PORT such as 127.0.0.1:8080", self.bind),
+                format!(
+                    "{:?} is not an ADDRESS:PORT such as 127.0.0.1:8080",
+                    self.bind
+                ),
             ));
         }
         if let Some(k) = &self.admin_key
@@ -137,9 +140,7 @@ impl ServerConfig {
         if l.max_message_bytes < frame_bytes {
             return Err(ConfigError::new(
                 "limits.max_message_bytes",
-                format!(
-                    "must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"
-                ),
+                format!("must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"),
             ));
         }
         if !(l.finished_ttl_s >= 0.0 && l.finished_ttl_s.is_finite()) {
@@ -172,7 +173,8 @@ mod tests {
 
     #[test]
     fn files_parse_and_errors_name_the_field() {
-        let c = ServerConfig::parse("bind = \"0.0.0.0:9000\"\n[limits]\nqueue_depth = 8\n").unwrap();
+        let c =
+            ServerConfig::parse("bind = \"0.0.0.0:9000\"\n[limits]\nqueue_depth = 8\n").unwrap();
         assert_eq!((c.bind.as_str(), c.limits.queue_depth), ("0.0.0.0:9000", 8));
         assert_eq!(c.limits.max_sessions, Limits::default().max_sessions);
         let c = ServerConfig::parse(r#"{"limits": {"max_sessions": 3}}"#).unwrap();

@@ -15,8 +15,7 @@ pub trait Engine: Send + 'static {
         samples: &[f32],
     ) -> Result<Vec<PipelineEvent>, InputError>;
     /// Accepts one camera frame.
-    fn push_detections(&mut self, frame: DetectionFrame)
-    -> Result<Vec<PipelineEvent>, InputError>;
+    fn push_detections(&mut self, frame: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError>;
     /// Accepts one device measurement frame.
     fn push_device_measurements(
         &mut self,
@@ -40,10 +39,7 @@ impl Engine for Pipeline {
         Pipeline::push_audio(self, first_sample, channels, samples)
     }
 
-    fn push_detections(
-        &mut self,
-        frame: DetectionFrame,
-    ) -> Result<Vec<PipelineEvent>, InputError> {
+    fn push_detections(&mut self, frame: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError> {
         Pipeline::push_detections(self, frame)
     }
 

@@ -49,7 +49,9 @@ impl ApiError {
         Self::new(
             StatusCode::UNAUTHORIZED,
             "unauthorized",
-            format!("{what} needs a credential: `Authorization: Bearer <secret>` or `?token=<secret>`"),
+            format!(
+                "{what} needs a credential: `Authorization: Bearer <secret>` or `?token=<secret>`"
+            ),
         )
     }
 
@@ -74,7 +76,11 @@ impl ApiError {
 
     /// 422 from a geometry error, with its field under `prefix`.
     pub fn geometry(e: GeometryError, prefix: &str) -> Self {
-        let e = if prefix.is_empty() { e } else { e.within(prefix) };
+        let e = if prefix.is_empty() {
+            e
+        } else {
+            e.within(prefix)
+        };
         Self::new(StatusCode::UNPROCESSABLE_ENTITY, "invalid", e.message).field(e.field)
     }
 
@@ -177,8 +183,12 @@ pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
         let path = e.path().to_string();
         let inner = e.into_inner();
         if inner.is_data() {
-            ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, "invalid", inner.to_string())
-                .field(if path == "." { String::new() } else { path })
+            ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                "invalid",
+                inner.to_string(),
+            )
+            .field(if path == "." { String::new() } else { path })
         } else {
             ApiError::new(
                 StatusCode::BAD_REQUEST,
@@ -197,7 +207,10 @@ mod tests {
     #[test]
     fn body_errors_name_the_field() {
         let e = parse_json::<CreateSession>(b"{\"sample_rate\": 16000, ").unwrap_err();
-        assert_eq!((e.status, e.body.code.as_str()), (StatusCode::BAD_REQUEST, "bad_json"));
+        assert_eq!(
+            (e.status, e.body.code.as_str()),
+            (StatusCode::BAD_REQUEST, "bad_json")
+        );
         let e = parse_json::<CreateSession>(
             br#"{"sample_rate": 16000, "arrays": [{"id": "a", "mics": [[0, 0]]}]}"#,
         )
@@ -208,7 +221,14 @@ mod tests {
             br#"{"sample_rate": 16000, "arrays": [], "settings": {"track": {"survival": 1}}}"#,
         )
         .unwrap_err();
-        assert!(e.body.field.as_deref().unwrap().starts_with("settings.track"), "{e:?}");
+        assert!(
+            e.body
+                .field
+                .as_deref()
+                .unwrap()
+                .starts_with("settings.track"),
+            "{e:?}"
+        );
     }
 
     #[test]
@@ -220,6 +240,9 @@ mod tests {
             "cannot change on a running session",
         ));
         let e = ApiError::from(c);
-        assert_eq!((e.status, e.body.code.as_str()), (StatusCode::CONFLICT, "not_live"));
+        assert_eq!(
+            (e.status, e.body.code.as_str()),
+            (StatusCode::CONFLICT, "not_live")
+        );
     }
 }

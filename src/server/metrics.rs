@@ -83,7 +83,10 @@ impl ServerMetrics {
     pub fn new() -> Result<Self, prometheus::Error> {
         let registry = Registry::new();
         let frames_in = IntCounterVec::new(
-            Opts::new("avsep_frames_in_total", "Inbound messages accepted, by kind"),
+            Opts::new(
+                "avsep_frames_in_total",
+                "Inbound messages accepted, by kind",
+            ),
             &["kind"],
         )?;
         let refused = IntCounterVec::new(
@@ -131,10 +134,7 @@ impl ServerMetrics {
                 "avsep_session_failures_total",
                 "Sessions whose pipeline panicked",
             )?,
-            sessions_created: IntCounter::new(
-                "avsep_sessions_created_total",
-                "Sessions created",
-            )?,
+            sessions_created: IntCounter::new("avsep_sessions_created_total", "Sessions created")?,
             sessions,
             clients: IntGauge::new("avsep_clients", "Stream clients connected")?,
             queue_depth: IntGauge::new(
@@ -159,7 +159,8 @@ impl ServerMetrics {
         m.registry.register(Box::new(m.step_latency.clone()))?;
         m.registry.register(Box::new(m.step_processing.clone()))?;
         m.registry.register(Box::new(m.audio_seconds.clone()))?;
-        m.registry.register(Box::new(m.processing_seconds.clone()))?;
+        m.registry
+            .register(Box::new(m.processing_seconds.clone()))?;
         m.registry.register(Box::new(m.panics.clone()))?;
         m.registry.register(Box::new(m.sessions_created.clone()))?;
         m.registry.register(Box::new(m.sessions.clone()))?;
@@ -191,7 +192,8 @@ impl ServerMetrics {
         self.clients.set(snap.clients);
         self.queue_depth.set(snap.queue_depth);
         self.live_tracks.set(snap.live_tracks);
-        self.resident_bytes.set(resident_memory_bytes().unwrap_or(0) as i64);
+        self.resident_bytes
+            .set(resident_memory_bytes().unwrap_or(0) as i64);
         let audio = self.audio_seconds.get();
         self.real_time_factor.set(if audio > 0.0 {
             self.processing_seconds.get() / audio
@@ -323,7 +325,9 @@ impl SessionCounters {
         self.steps.fetch_add(1, Ordering::Relaxed);
         self.server.steps.inc();
         self.server.step_latency.observe(latency.as_secs_f64());
-        self.server.step_processing.observe(processing.as_secs_f64());
+        self.server
+            .step_processing
+            .observe(processing.as_secs_f64());
         if let Ok(mut w) = self.latency.lock() {
             w.push(latency.as_secs_f64() * 1e3);
         }
@@ -400,7 +404,10 @@ mod tests {
             w.push(f64::from(v));
         }
         let s = w.summary();
-        assert_eq!((s.count, s.p50, s.p95, s.p99, s.max), (100, 50.0, 95.0, 99.0, 100.0));
+        assert_eq!(
+            (s.count, s.p50, s.p95, s.p99, s.max),
+            (100, 50.0, 95.0, 99.0, 100.0)
+        );
         for _ in 0..LATENCY_WINDOW {
             w.push(1.0);
         }
@@ -419,7 +426,10 @@ mod tests {
         assert_eq!(c.refusals()["queue_full"], 2);
         assert!((c.real_time(16_000).1 - 0.01).abs() < 1e-9);
         let text = server.render(&Snapshot::default());
-        assert!(text.contains("avsep_frames_refused_total{reason=\"queue_full\"} 2"), "{text}");
+        assert!(
+            text.contains("avsep_frames_refused_total{reason=\"queue_full\"} 2"),
+            "{text}"
+        );
         assert!(text.contains("avsep_frames_in_total{kind=\"audio\"} 1"));
         assert!(text.contains("avsep_step_latency_seconds_bucket"));
         assert!(text.contains("avsep_sessions{state=\"running\"} 0"));

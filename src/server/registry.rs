@@ -77,7 +77,9 @@ impl Registry {
             return Err(ApiError::new(
                 StatusCode::SERVICE_UNAVAILABLE,
                 "at_capacity",
-                format!("the server holds {max} sessions (limits.max_sessions); delete one or use another server"),
+                format!(
+                    "the server holds {max} sessions (limits.max_sessions); delete one or use another server"
+                ),
             ));
         }
         Ok(())
@@ -126,7 +128,11 @@ impl Registry {
     }
 
     /// Starts a session driven by `engine` and registers it.
-    pub fn insert<E: Engine>(&self, spec: SessionSpec, engine: E) -> Result<SessionHandle, ApiError> {
+    pub fn insert<E: Engine>(
+        &self,
+        spec: SessionSpec,
+        engine: E,
+    ) -> Result<SessionHandle, ApiError> {
         self.check_capacity()?;
         let handle = SessionHandle::start(spec, engine, self.metrics.clone()).map_err(|e| {
             ApiError::new(
@@ -135,10 +141,13 @@ impl Registry {
                 format!("cannot start the session's worker thread: {e}"),
             )
         })?;
-        let mut sessions = self
-            .sessions
-            .write()
-            .map_err(|_| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", "registry lock poisoned"))?;
+        let mut sessions = self.sessions.write().map_err(|_| {
+            ApiError::new(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                "internal",
+                "registry lock poisoned",
+            )
+        })?;
         if sessions.len() >= self.config.limits.max_sessions {
             handle.finish("server at capacity");
             return Err(ApiError::new(
@@ -220,6 +229,10 @@ impl Registry {
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
         let left = sessions.iter().filter(|s| busy(s)).count();
-        tracing::info!(sessions = sessions.len(), unfinished = left, "sessions drained");
+        tracing::info!(
+            sessions = sessions.len(),
+            unfinished = left,
+            "sessions drained"
+        );
     }
 }

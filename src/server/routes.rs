@@ -29,7 +29,9 @@ pub(super) fn require_admin(
     match auth::presented(headers, query) {
         None => Err(ApiError::unauthorized("this endpoint")),
         Some(p) if auth::same_secret(key, &p) => Ok(()),
-        Some(_) => Err(ApiError::forbidden("this endpoint (it needs the admin key)")),
+        Some(_) => Err(ApiError::forbidden(
+            "this endpoint (it needs the admin key)",
+        )),
     }
 }
 
@@ -51,7 +53,10 @@ pub(super) fn session_access(
     let Some(presented) = auth::presented(headers, query) else {
         return Err(ApiError::unauthorized("a session's endpoints"));
     };
-    let session = app.registry.get(id).ok_or_else(|| ApiError::no_session(id))?;
+    let session = app
+        .registry
+        .get(id)
+        .ok_or_else(|| ApiError::no_session(id))?;
     if session.token_matches(&presented) || is_admin(app, &presented) {
         Ok(session)
     } else {
@@ -106,7 +111,10 @@ pub(super) async fn create_session(
 impl<T: serde::de::DeserializeOwned> JsonBody<T> {
     /// Reads the body after the handler has checked credentials (so an unauthenticated request
     /// gets 401/403, not a body error).
-    pub(super) async fn from_request_checked(req: Request, app: &AppState) -> Result<Self, ApiError> {
+    pub(super) async fn from_request_checked(
+        req: Request,
+        app: &AppState,
+    ) -> Result<Self, ApiError> {
         <Self as axum::extract::FromRequest<AppState>>::from_request(req, app).await
     }
 }
@@ -179,7 +187,9 @@ pub(super) async fn delete_session(
 ) -> Result<StatusCode, ApiError> {
     if app.registry.config().admin_key.is_some() {
         require_admin(&app, &headers, query.as_deref())?;
-        app.registry.get(&id).ok_or_else(|| ApiError::no_session(&id))?;
+        app.registry
+            .get(&id)
+            .ok_or_else(|| ApiError::no_session(&id))?;
     } else {
         session_access(&app, &id, &headers, query.as_deref())?;
     }
@@ -251,11 +261,15 @@ pub(super) async fn track_history(
 ) -> Result<Json<TrackHistory>, ApiError> {
     let s = session_access(&app, &id, &headers, query.as_deref())?;
     let q: HistoryQuery = match query.as_deref() {
-        Some(raw) => Query::<HistoryQuery>::try_from_uri(
-            &format!("/?{raw}").parse().map_err(|_| bad_query("the query string"))?,
-        )
-        .map_err(|e| bad_query(&e.body_text()))?
-        .0,
+        Some(raw) => {
+            Query::<HistoryQuery>::try_from_uri(
+                &format!("/?{raw}")
+                    .parse()
+                    .map_err(|_| bad_query("the query string"))?,
+            )
+            .map_err(|e| bad_query(&e.body_text()))?
+            .0
+        }
         None => HistoryQuery {
             from_step: None,
             limit: None,
@@ -263,11 +277,17 @@ pub(super) async fn track_history(
         },
     };
     let max = app.registry.config().limits.history_steps;
-    Ok(Json(s.history(q.from_step, q.limit.unwrap_or(max).min(max))))
+    Ok(Json(
+        s.history(q.from_step, q.limit.unwrap_or(max).min(max)),
+    ))
 }
 
 fn bad_query(what: &str) -> ApiError {
-    ApiError::new(StatusCode::BAD_REQUEST, "bad_query", format!("invalid query: {what}"))
+    ApiError::new(
+        StatusCode::BAD_REQUEST,
+        "bad_query",
+        format!("invalid query: {what}"),
+    )
 }
 
 /// The session's metrics.
@@ -332,11 +352,7 @@ pub(super) async fn readyz(State(app): State<AppState>) -> (StatusCode, Json<Hea
 )]
 pub(super) async fn prometheus(State(app): State<AppState>) -> Response {
     let text = app.registry.metrics().render(&app.registry.snapshot());
-    (
-        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        text,
-    )
-        .into_response()
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
 }
 
 /// 404 in the API's error form for unknown paths.

@@ -152,7 +152,10 @@ pub(super) struct Queued {
 pub(super) enum Work {
     Input(Input),
     Recalibrate(Layout, oneshot::Sender<Result<(), ConfigError>>),
-    Configure(PipelineConfig, oneshot::Sender<Result<(), ConfigError>>),
+    Configure(
+        Box<PipelineConfig>,
+        oneshot::Sender<Result<(), ConfigError>>,
+    ),
 }
 
 /// The sending side of the queue, and the audio position it has accepted up to.
@@ -312,7 +315,9 @@ impl SessionHandle {
         let max = self.limits.max_clients_per_session;
         let joined = self
             .clients
-            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| (n < max).then_some(n + 1));
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
+                (n < max).then_some(n + 1)
+            });
         if joined.is_err() {
             return Err(Rejection::new(
                 "too_many_clients",
@@ -344,9 +349,7 @@ impl Session {
 
     /// Life state.
     pub fn state(&self) -> SessionState {
-        self.life
-            .lock()
-            .map_or(SessionState::Failed, |l| l.state)
+        self.life.lock().map_or(SessionState::Failed, |l| l.state)
     }
 
     /// When the session finished or failed, if it did.
@@ -402,6 +405,15 @@ impl Session {
     /// here).
     pub fn next_sample(&self) -> u64 {
         self.inbox.lock().map_or(0, |i| i.next_sample)
+    }
+
+    /// Index of the next tracker step the pipeline will report (0 before the first).
+    pub fn next_step(&self) -> u64 {
+        self.history
+            .lock()
+            .ok()
+            .and_then(|h| h.back().map(|s| s.step + 1))
+            .unwrap_or(0)
     }
 
     /// Labels of the tracks that exist now.
@@ -521,14 +533,16 @@ impl Session {
     /// Ends the input: the worker processes what is queued, flushes, and closes every stream
     /// with `reason`. Later input is refused.
     pub fn finish(&self, reason: &str) {
-        if let Ok(mut inbox) = self.inbox.lock() {
-            inbox.tx = None;
-        }
+        // The reason goes in before the queue closes: the worker may see the closed queue,
+        // flush and read the reason at once.
         if let Ok(mut life) = self.life.lock()
             && life.state == SessionState::Running
         {
             life.state = SessionState::Finishing;
             life.close_reason = reason.to_string();
+        }
+        if let Ok(mut inbox) = self.inbox.lock() {
+            inbox.tx = None;
         }
     }
 
@@ -558,7 +572,8 @@ impl Session {
 
     /// Changes settings that can change live (others are refused, naming the field).
     pub async fn configure(&self, settings: PipelineConfig) -> Result<(), ControlError> {
-        self.control(|tx| Work::Configure(settings, tx)).await
+        self.control(|tx| Work::Configure(Box::new(settings), tx))
+            .await
     }
 
     /// Track estimates from `from_step` on (all held when `None`), at most `limit`.

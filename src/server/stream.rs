@@ -87,7 +87,9 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
     }
     tracing::debug!(session = %session.id(), client = me, "stream opened");
     if session.state() != SessionState::Running {
-        let _ = sink.send(close(session.state(), "the session has ended")).await;
+        let _ = sink
+            .send(close(session.state(), "the session has ended"))
+            .await;
         return;
     }
     loop {
@@ -164,6 +166,7 @@ fn welcome(s: &SessionHandle) -> ServerMessage {
         arrays: layout.arrays.iter().map(|a| a.id.clone()).collect(),
         cameras: layout.cameras.iter().map(|c| c.id.clone()).collect(),
         next_sample: s.next_sample(),
+        next_step: s.next_step(),
         step_s: s.step_s(),
         audio_delay_samples: s.audio_delay_samples(),
         queue_depth: limits.queue_depth,

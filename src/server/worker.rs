@@ -28,9 +28,7 @@ pub(super) fn run<E: Engine>(mut engine: E, session: SessionHandle, rx: Receiver
     match catch_unwind(AssertUnwindSafe(|| engine.finish())) {
         Ok(events) => {
             let busy = started.elapsed();
-            session
-                .counters
-                .processed(busy, 0, session.sample_rate());
+            session.counters.processed(busy, 0, session.sample_rate());
             publish(&session, events, started, busy);
             session.close_finished();
             tracing::info!(session = %session.id(), "session finished");
@@ -88,9 +86,9 @@ fn handle<E: Engine>(engine: &mut E, s: &Session, q: Queued) {
             let _ = reply.send(result);
         }
         Work::Configure(settings, reply) => {
-            let result = engine.update_config(settings.clone());
+            let result = engine.update_config((*settings).clone());
             if result.is_ok() {
-                s.set_settings(settings);
+                s.set_settings(*settings);
                 tracing::info!(session = %s.id(), "settings changed");
             }
             let _ = reply.send(result);

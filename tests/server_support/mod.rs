@@ -53,9 +53,16 @@ impl TestServer {
     }
 
     /// Creates a session for `scene` with `settings`.
-    pub async fn create(&self, scene: &Scene, settings: PipelineConfig, key: Option<&str>) -> SessionCreated {
+    pub async fn create(
+        &self,
+        scene: &Scene,
+        settings: PipelineConfig,
+        key: Option<&str>,
+    ) -> SessionCreated {
         let body = serde_json::to_vec(&create_body(&scene.layout, Some(settings))).unwrap();
-        let r = http(&self.host(), "POST", "/v1/sessions", key, Some(&body)).await.unwrap();
+        let r = http(&self.host(), "POST", "/v1/sessions", key, Some(&body))
+            .await
+            .unwrap();
         assert_eq!(r.status, 201, "{}", r.text());
         r.json().unwrap()
     }
@@ -124,7 +131,10 @@ pub fn assert_same_tracks(offline: &[TracksLine], streamed: &[TracksSnapshot]) {
 
 /// Largest absolute difference between the streamed and offline separated audio, over labels
 /// that both have (and both must have the same labels).
-pub fn audio_difference(offline: &BTreeMap<Label, Vec<f32>>, streamed: &BTreeMap<Label, Vec<f32>>) -> f32 {
+pub fn audio_difference(
+    offline: &BTreeMap<Label, Vec<f32>>,
+    streamed: &BTreeMap<Label, Vec<f32>>,
+) -> f32 {
     assert_eq!(
         offline.keys().collect::<Vec<_>>(),
         streamed.keys().collect::<Vec<_>>(),
@@ -134,7 +144,10 @@ pub fn audio_difference(offline: &BTreeMap<Label, Vec<f32>>, streamed: &BTreeMap
     for (label, a) in offline {
         let b = &streamed[label];
         assert_eq!(a.len(), b.len());
-        assert!(a.iter().any(|v| *v != 0.0), "label {label} is silent offline");
+        assert!(
+            a.iter().any(|v| *v != 0.0),
+            "label {label} is silent offline"
+        );
         for (x, y) in a.iter().zip(b) {
             worst = worst.max((x - y).abs());
         }
