@@ -1,6 +1,7 @@
 //! The `avsep` command line: simulate scenes, process them offline, score the results, print the
 //! configuration (and, later, serve sessions).
 
+mod client;
 mod config;
 mod eval;
 mod loadgen;
@@ -39,6 +40,8 @@ pub enum Command {
     Serve(serve::ServeArgs),
     /// Load-test a running server with N concurrent simulated sessions.
     Loadgen(loadgen::LoadgenArgs),
+    /// Talk to a running server as a client (stream a scene and record what comes back).
+    Client(client::ClientArgs),
 }
 
 /// A command failure with its exit code: 2 for bad input (arguments, scenes, configuration),
@@ -84,6 +87,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Config(a) => config::run(a),
         Command::Serve(a) => serve::run(a),
         Command::Loadgen(a) => loadgen::run(a),
+        Command::Client(a) => client::run(a),
     }
 }
 
@@ -106,7 +110,14 @@ pub fn main() -> ExitCode {
 
 fn init_logging(default_level: &str, json: bool) {
     use tracing_subscriber::EnvFilter;
-    let filter = EnvFilter::try_from_env("AVSEP_LOG").unwrap_or_else(|_| EnvFilter::new(default_level));
-    let fmt = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr);
-    let _ = if json { fmt.json().try_init() } else { fmt.try_init() };
+    let filter =
+        EnvFilter::try_from_env("AVSEP_LOG").unwrap_or_else(|_| EnvFilter::new(default_level));
+    let fmt = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    let _ = if json {
+        fmt.json().try_init()
+    } else {
+        fmt.try_init()
+    };
 }

@@ -14,6 +14,7 @@ use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_js
 use super::PipelineEvent;
 use super::config::{ConfigError, PipelineConfig};
 use super::diarization::{Diarizer, to_rttm};
+use super::input::InputError;
 use super::session::{Pipeline, PipelineStats};
 
 /// Options of an offline run.
@@ -78,6 +79,13 @@ pub struct RunSummary {
 /// Default seed of offline runs when the configuration gives none.
 pub const DEFAULT_OFFLINE_SEED: u64 = 0x5eed;
 
+/// What the sink wrote, for the summary.
+struct Written {
+    labels: Vec<Label>,
+    speech_segments: usize,
+    warnings: BTreeMap<String, u64>,
+}
+
 /// Everything an offline run writes, accumulated from the pipeline's events.
 struct OutputSink {
     tracks: JsonlWriter,
@@ -91,6 +99,55 @@ struct OutputSink {
 }
 
 impl OutputSink {
+    /// Creates the output folder and its streaming files.
+    fn create(out: &Path, frames: usize, step_s: f64) -> Result<Self, SceneError> {
+        std::fs::create_dir_all(out.join(files::AUDIO_DIR))
+            .map_err(|e| SceneError::new(out, format!("cannot create output folder: {e}")))?;
+        Ok(Self {
+            tracks: JsonlWriter::create(&out.join(files::TRACKS))?,
+            measurements: JsonlWriter::create(&out.join(files::MEASUREMENTS))?,
+            audio: BTreeMap::new(),
+            frames,
+            diarizer: Diarizer::new(0.5, 0.3, 0.5),
+            step_s,
+            warnings: BTreeMap::new(),
+            labels: Vec::new(),
+        })
+    }
+
+    /// Takes the events of an accepted input, or counts a refused one as a warning (a live
+    /// client would get the same error and go on).
+    fn accept(&mut self, result: Result<Vec<PipelineEvent>, InputError>) -> Result<(), SceneError> {
+        match result {
+            Ok(events) => self.handle(events),
+            Err(e) => self.handle(vec![PipelineEvent::Warning {
+                code: e.code,
+                message: e.to_string(),
+            }]),
+        }
+    }
+
+    /// Closes the streaming files and writes the audio and the diarization.
+    fn finish(self, out: &Path, sample_rate: u32, file_id: &str) -> Result<Written, SceneError> {
+        self.tracks.finish()?;
+        self.measurements.finish()?;
+        for (label, samples) in self.audio {
+            Audio::mono(sample_rate, samples).write(
+                &out.join(files::AUDIO_DIR).join(format!("{label}.wav")),
+                SampleFormat::F32,
+            )?;
+        }
+        let segments = self.diarizer.finish();
+        let rttm = out.join(files::DIARIZATION);
+        std::fs::write(&rttm, to_rttm(file_id, &segments))
+            .map_err(|e| SceneError::new(&rttm, format!("cannot write: {e}")))?;
+        Ok(Written {
+            labels: self.labels,
+            speech_segments: segments.len(),
+            warnings: self.warnings,
+        })
+    }
+
     fn handle(&mut self, events: Vec<PipelineEvent>) -> Result<(), SceneError> {
         for e in events {
             match e {
@@ -150,21 +207,54 @@ pub fn process_scene(
         })?;
         pipeline.use_oracle_tracks(truth);
     }
-    std::fs::create_dir_all(out.join(files::AUDIO_DIR))
-        .map_err(|e| SceneError::new(out, format!("cannot create output folder: {e}")))?;
     let frames = scene.audio.as_ref().map_or(0, Audio::frames);
-    let mut sink = OutputSink {
-        tracks: JsonlWriter::create(&out.join(files::TRACKS))?,
-        measurements: JsonlWriter::create(&out.join(files::MEASUREMENTS))?,
-        audio: BTreeMap::new(),
-        frames,
-        diarizer: Diarizer::new(0.5, 0.3, 0.5),
-        step_s: pipeline.clock().step_s(),
-        warnings: BTreeMap::new(),
-        labels: Vec::new(),
-    };
+    let mut sink = OutputSink::create(out, frames, pipeline.clock().step_s())?;
+    feed_scene(
+        scene,
+        &mut pipeline,
+        &mut sink,
+        opts.block_samples,
+        progress,
+    )?;
+    let file_id = scene
+        .dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("scene");
+    let written = sink.finish(out, scene.layout.sample_rate, file_id)?;
 
-    // Merge camera frames and device measurements into one time-ordered feed.
+    let duration_s = scene.duration();
+    let processing_s = started.elapsed().as_secs_f64();
+    let summary = RunSummary {
+        scene: scene.dir.display().to_string(),
+        duration_s,
+        processing_s,
+        real_time_factor: if duration_s > 0.0 {
+            processing_s / duration_s
+        } else {
+            0.0
+        },
+        oracle_tracks: opts.oracle_tracks,
+        tracks: written.labels.iter().map(ToString::to_string).collect(),
+        speech_segments: written.speech_segments,
+        warnings: written.warnings,
+        stats: pipeline.stats(),
+        seed,
+        settings: cfg,
+    };
+    write_json(&out.join(files::SUMMARY), &summary)?;
+    Ok(summary)
+}
+
+/// Feeds the scene's audio in blocks of `block_samples`, and its camera frames and device
+/// measurements in time order between the blocks, as a live client streaming it would.
+fn feed_scene(
+    scene: &Scene,
+    pipeline: &mut Pipeline,
+    sink: &mut OutputSink,
+    block_samples: usize,
+    progress: &dyn Fn(f64),
+) -> Result<(), SceneError> {
     let mut feed: Vec<(f64, Feed)> = scene
         .detections
         .iter()
@@ -185,93 +275,29 @@ pub fn process_scene(
                     Feed::Detection(d) => pipeline.push_detections((*d).clone()),
                     Feed::Device(m) => pipeline.push_device_measurements((*m).clone()),
                 };
-                match result {
-                    Ok(events) => sink.handle(events)?,
-                    Err(e) => sink.handle(vec![PipelineEvent::Warning {
-                        code: e.code,
-                        message: e.to_string(),
-                    }])?,
-                }
+                sink.accept(result)?;
                 next += 1;
             }
             Ok(())
         };
-
-    match &scene.audio {
-        Some(audio) => {
-            let sr = audio.sample_rate as f64;
-            let block = opts.block_samples.max(1);
-            let mut start = 0;
-            while start < frames {
-                let end = (start + block).min(frames);
-                push_feed_until(&mut pipeline, &mut sink, end as f64 / sr)?;
-                let slice = &audio.samples[start * audio.channels..end * audio.channels];
-                match pipeline.push_audio(start as u64, audio.channels, slice) {
-                    Ok(events) => sink.handle(events)?,
-                    Err(e) => sink.handle(vec![PipelineEvent::Warning {
-                        code: e.code,
-                        message: e.to_string(),
-                    }])?,
-                }
-                start = end;
-                progress(start as f64 / frames as f64);
-            }
-            push_feed_until(&mut pipeline, &mut sink, f64::INFINITY)?;
+    if let Some(audio) = &scene.audio {
+        let frames = audio.frames();
+        let sr = audio.sample_rate as f64;
+        let block = block_samples.max(1);
+        let mut start = 0;
+        while start < frames {
+            let end = (start + block).min(frames);
+            push_feed_until(pipeline, sink, end as f64 / sr)?;
+            let slice = &audio.samples[start * audio.channels..end * audio.channels];
+            sink.accept(pipeline.push_audio(start as u64, audio.channels, slice))?;
+            start = end;
+            progress(start as f64 / frames as f64);
         }
-        None => push_feed_until(&mut pipeline, &mut sink, f64::INFINITY)?,
     }
+    push_feed_until(pipeline, sink, f64::INFINITY)?;
     sink.handle(pipeline.finish())?;
     progress(1.0);
-
-    let OutputSink {
-        tracks,
-        measurements,
-        audio,
-        diarizer,
-        warnings,
-        labels,
-        ..
-    } = sink;
-    tracks.finish()?;
-    measurements.finish()?;
-    let sr = scene.layout.sample_rate;
-    for (label, samples) in audio {
-        Audio::mono(sr, samples).write(
-            &out.join(files::AUDIO_DIR).join(format!("{label}.wav")),
-            SampleFormat::F32,
-        )?;
-    }
-    let segments = diarizer.finish();
-    let file_id = scene
-        .dir
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or("scene");
-    std::fs::write(out.join(files::DIARIZATION), to_rttm(file_id, &segments)).map_err(|e| {
-        SceneError::new(&out.join(files::DIARIZATION), format!("cannot write: {e}"))
-    })?;
-
-    let duration_s = scene.duration();
-    let processing_s = started.elapsed().as_secs_f64();
-    let summary = RunSummary {
-        scene: scene.dir.display().to_string(),
-        duration_s,
-        processing_s,
-        real_time_factor: if duration_s > 0.0 {
-            processing_s / duration_s
-        } else {
-            0.0
-        },
-        oracle_tracks: opts.oracle_tracks,
-        tracks: labels.iter().map(ToString::to_string).collect(),
-        speech_segments: segments.len(),
-        warnings,
-        stats: pipeline.stats(),
-        seed,
-        settings: cfg,
-    };
-    write_json(&out.join(files::SUMMARY), &summary)?;
-    Ok(summary)
+    Ok(())
 }
 
 enum Feed<'a> {

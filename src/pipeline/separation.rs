@@ -65,7 +65,10 @@ impl SeparationDriver {
     /// New separator settings with the same framing (labels and streams are kept).
     pub fn set_config(&mut self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
         if cfg.frame_geometry() != self.geometry {
-            return Err(ConfigError::new("separate.frame", "the STFT framing cannot change on a running session"));
+            return Err(ConfigError::new(
+                "separate.frame",
+                "the STFT framing cannot change on a running session",
+            ));
         }
         self.separator.set_config(cfg).map_err(sep_err)
     }

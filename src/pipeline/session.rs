@@ -535,12 +535,16 @@ impl Pipeline {
     /// shapes a stage when it is built and is refused, naming the first such field.
     pub fn update_config(&mut self, cfg: PipelineConfig) -> Result<(), ConfigError> {
         cfg.validate()?;
-        let as_value = |c: &PipelineConfig| serde_json::to_value(c).map_err(|e| ConfigError::new("", e.to_string()));
+        let as_value = |c: &PipelineConfig| {
+            serde_json::to_value(c).map_err(|e| ConfigError::new("", e.to_string()))
+        };
         let mut changed = Vec::new();
         changed_fields(&as_value(&self.cfg)?, &as_value(&cfg)?, "", &mut changed);
         let live = |f: &str| {
             !matches!(f, "separate.frame" | "separate.hop")
-                && LIVE_SETTINGS.iter().any(|p| f == *p || f.strip_prefix(p).is_some_and(|r| r.starts_with('.')))
+                && LIVE_SETTINGS
+                    .iter()
+                    .any(|p| f == *p || f.strip_prefix(p).is_some_and(|r| r.starts_with('.')))
         };
         if let Some(f) = changed.iter().find(|f| !live(f)) {
             return Err(ConfigError::new(
@@ -549,10 +553,17 @@ impl Pipeline {
             ));
         }
         if changed.iter().any(|f| f.starts_with("track.")) {
-            cfg.track.validate().map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+            cfg.track
+                .validate()
+                .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
             if let TrackSource::Tracker { tracker, .. } = &mut self.source {
-                let models = sensors_from_layout(&self.layout, &cfg.track).into_iter().map(|(_, m)| m).collect();
-                tracker.set_sensors(models).map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+                let models = sensors_from_layout(&self.layout, &cfg.track)
+                    .into_iter()
+                    .map(|(_, m)| m)
+                    .collect();
+                tracker
+                    .set_sensors(models)
+                    .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
             }
         }
         if changed.iter().any(|f| f.starts_with("separate."))
@@ -591,18 +602,31 @@ pub const LIVE_SETTINGS: &[&str] = &[
 ];
 
 /// Dotted paths of the leaves where two settings documents differ.
-fn changed_fields(old: &serde_json::Value, new: &serde_json::Value, path: &str, out: &mut Vec<String>) {
+fn changed_fields(
+    old: &serde_json::Value,
+    new: &serde_json::Value,
+    path: &str,
+    out: &mut Vec<String>,
+) {
     match (old, new) {
         (serde_json::Value::Object(a), serde_json::Value::Object(b)) => {
             for (key, va) in a {
-                let p = if path.is_empty() { key.clone() } else { format!("{path}.{key}") };
+                let p = if path.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{path}.{key}")
+                };
                 match b.get(key) {
                     Some(vb) => changed_fields(va, vb, &p, out),
                     None => out.push(p),
                 }
             }
             for key in b.keys().filter(|k| !a.contains_key(*k)) {
-                out.push(if path.is_empty() { key.clone() } else { format!("{path}.{key}") });
+                out.push(if path.is_empty() {
+                    key.clone()
+                } else {
+                    format!("{path}.{key}")
+                });
             }
         }
         (a, b) if a != b => out.push(path.to_string()),
