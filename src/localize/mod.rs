@@ -28,7 +28,7 @@ pub use config::{
 
 use activity::ActivityTracker;
 use directions::DirectionSearch;
-use gcc::GccBank;
+use gcc::{GccBank, GccSettings};
 use noise_floor::BinNoiseFloor;
 use region_contraction::PositionSearch;
 
@@ -170,8 +170,11 @@ impl Localizer {
             array,
             self.cfg.frame,
             self.band,
-            self.cfg.interpolation,
-            self.cfg.phat_exponent,
+            GccSettings {
+                interpolation: self.cfg.interpolation,
+                beta: self.cfg.phat_exponent,
+                smoothing: &self.cfg.smoothing_weights(),
+            },
             self.sample_rate,
             c,
         );
@@ -291,6 +294,7 @@ fn process_array(
 ) {
     let power = state.bank.whiten(spectra);
     if ActivityTracker::is_silent(&cfg.activity, power) {
+        state.bank.forget();
         return;
     }
     let snr = state.activity.update(power);
