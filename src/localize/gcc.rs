@@ -21,6 +21,8 @@ use crate::geometry::MicArray;
 const SINC_TAPS: usize = 8;
 /// Kaiser window shape of the interpolation kernel.
 const KAISER_BETA: f64 = 8.0;
+/// Ridge added to the kernel Gram matrix of a joint removal (the kernel is 1 at zero lag).
+const JOINT_RIDGE: f64 = 0.05;
 /// Extra lag range (samples) tabulated beyond d_ab / c, so lookups at the physical limit interpolate.
 const LAG_MARGIN_SAMPLES: f64 = 1.0;
 
@@ -427,6 +429,55 @@ impl GccBank {
             let hi = ((centre + w).floor() as usize).min(end);
             for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
                 *t -= alpha * lerp(&self.kernel, (j as f64 - centre).abs());
+            }
+            table[end + 1] = table[end];
+        }
+    }
+
+    /// Removes the sources at `tdoa_s` (source-major, one TDOA per pair, seconds) from the tables
+    /// as computed, except source `keep`: for each pair, the amplitudes of all the sources are
+    /// fitted jointly, GCC(tau_i) = sum_j alpha_j K(tau_i - tau_j), so that a source whose lag
+    /// sits on another's lobe is not over-subtracted (on a small array the kernel's main lobe
+    /// spans most of the lag range). Each subtraction reaches `half_width_s` around its lag.
+    pub fn remove_jointly(&mut self, tdoa_s: &[Vec<f64>], keep: Option<usize>, half_width_s: f64) {
+        self.table.copy_from_slice(&self.pristine);
+        let n = tdoa_s.len();
+        if n == 0 {
+            return;
+        }
+        let w = half_width_s * self.steps_per_second;
+        let mut centres = vec![0.0; n];
+        let mut gram = nalgebra::DMatrix::<f64>::zeros(n, n);
+        let mut rhs = nalgebra::DVector::<f64>::zeros(n);
+        for (q, p) in self.pairs.iter().enumerate() {
+            let end = 2 * p.half;
+            for (c, t) in centres.iter_mut().zip(tdoa_s) {
+                *c = (p.half as f64 + t[q] * self.steps_per_second).clamp(0.0, end as f64);
+            }
+            let table = &mut self.table[p.offset..p.offset + end + 2];
+            for i in 0..n {
+                rhs[i] = lerp(table, centres[i]);
+                for j in 0..n {
+                    gram[(i, j)] = lerp(&self.kernel, (centres[i] - centres[j]).abs());
+                }
+                // A little ridge keeps coinciding lags from blowing the amplitudes up.
+                gram[(i, i)] += JOINT_RIDGE;
+            }
+            let alpha = gram
+                .clone()
+                .cholesky()
+                .map(|c| c.solve(&rhs))
+                .unwrap_or_else(|| rhs.clone());
+            for (i, &c) in centres.iter().enumerate() {
+                let a = alpha[i].max(0.0);
+                if Some(i) == keep || !a.is_finite() || a == 0.0 {
+                    continue;
+                }
+                let lo = (c - w).ceil().max(0.0) as usize;
+                let hi = ((c + w).floor() as usize).min(end);
+                for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    *t -= a * lerp(&self.kernel, (j as f64 - c).abs());
+                }
             }
             table[end + 1] = table[end];
         }
