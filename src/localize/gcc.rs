@@ -21,6 +21,8 @@ use crate::geometry::MicArray;
 const SINC_TAPS: usize = 8;
 /// Kaiser window shape of the interpolation kernel.
 const KAISER_BETA: f64 = 8.0;
+/// Ridge added to the kernel Gram matrix of a joint removal (the kernel is 1 at zero lag).
+const JOINT_RIDGE: f64 = 0.05;
 /// Extra lag range (samples) tabulated beyond d_ab / c, so lookups at the physical limit interpolate.
 const LAG_MARGIN_SAMPLES: f64 = 1.0;
 
@@ -46,6 +48,17 @@ pub(crate) fn lerp(table: &[f64], pos: f64) -> f64 {
     a + f * (table[i + 1] - a)
 }
 
+/// How the GCC tables are computed (from the localiser configuration).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct GccSettings<'a> {
+    /// Fine table steps per sample of lag.
+    pub interpolation: usize,
+    /// PHAT exponent beta: bins are divided by |Y|^beta.
+    pub beta: f64,
+    /// Weights of the current frame's cross-spectra and of the past frames' (most recent first).
+    pub smoothing: &'a [f64],
+}
+
 /// GCC-PHAT tables of all pairs of one array, with the buffers to compute them in place.
 pub(crate) struct GccBank {
     pub pairs: Vec<Pair>,
@@ -69,6 +82,15 @@ pub(crate) struct GccBank {
     /// Variance of the normalised SRP of incoherent signals in the current frame.
     null_var: f64,
     cross: Vec<Complex>,
+    /// Cross-spectra of the band bins of the current frame and the past ones, most recent first,
+    /// each pair-major; empty when the frames are not smoothed.
+    history: Vec<Vec<Complex>>,
+    /// Sum over band bins of |W_a| |W_b| (and of its square) per pair for each frame of `history`.
+    history_norms: Vec<Vec<(f64, f64)>>,
+    /// How many past frames of `history` hold data.
+    history_len: usize,
+    /// Weights of the current frame and of the past ones in the smoothed cross-spectrum.
+    smooth_weights: Vec<f64>,
     time: Vec<f64>,
     lags: Vec<f64>,
     kernels: Vec<f64>,
@@ -130,11 +152,15 @@ impl GccBank {
         array: &MicArray,
         frame: usize,
         band: (usize, usize),
-        interpolation: usize,
-        beta: f64,
+        settings: GccSettings,
         sample_rate: f64,
         speed_of_sound: f64,
     ) -> Self {
+        let GccSettings {
+            interpolation,
+            beta,
+            smoothing: smooth_weights,
+        } = settings;
         let mut pairs = Vec::new();
         let mut offset = 0;
         for (a, b) in array.pairs() {
@@ -144,6 +170,13 @@ impl GccBank {
             offset += 2 * half + 2;
         }
         let max_half = pairs.iter().map(|p| p.half).max().unwrap_or(0);
+        let npairs = pairs.len();
+        // The current frame and the past ones, when there are past ones to add.
+        let stored = if smooth_weights.len() > 1 {
+            smooth_weights.len()
+        } else {
+            0
+        };
         let lag_span = max_half / interpolation + 2 + SINC_TAPS;
         // kernels[r * 2K + i] weights integer lag (n0 - K + 1 + i) for the fraction r / I.
         let mut kernels = Vec::with_capacity(interpolation * 2 * SINC_TAPS);
@@ -175,6 +208,14 @@ impl GccBank {
             beta,
             null_var: 0.0,
             cross: vec![Complex::new(0.0, 0.0); frame / 2 + 1],
+            history: vec![vec![Complex::new(0.0, 0.0); nb * npairs]; stored],
+            history_norms: vec![vec![(0.0, 0.0); npairs]; stored],
+            history_len: 0,
+            smooth_weights: if smooth_weights.is_empty() {
+                vec![1.0]
+            } else {
+                smooth_weights.to_vec()
+            },
             time: vec![0.0; frame],
             lags: vec![0.0; 2 * lag_span + 1],
             kernels,
@@ -270,7 +311,14 @@ impl GccBank {
         let lag_span = (self.lags.len() / 2) as isize;
         let n = self.frame as isize;
         let mut null_var = 0.0;
-        for p in &self.pairs {
+        // The oldest stored frame makes room for this one.
+        if !self.history.is_empty() {
+            self.history.rotate_right(1);
+            self.history_norms.rotate_right(1);
+        }
+        let past = self.history_len.min(self.history.len().saturating_sub(1));
+        let w0 = self.smooth_weights[0];
+        for (q, p) in self.pairs.iter().enumerate() {
             self.cross.fill(Complex::new(0.0, 0.0));
             let wa = &self.white[p.a * nb..(p.a + 1) * nb];
             let wb = &self.white[p.b * nb..(p.b + 1) * nb];
@@ -284,13 +332,6 @@ impl GccBank {
                 s1 += w;
                 s2 += w * w;
             }
-            // Each bin adds a cosine of uniform phase (variance w^2 / 2) under incoherence.
-            let norm = if s1 > 0.0 {
-                null_var += s2 / (2.0 * s1 * s1);
-                1.0 / (2.0 * s1)
-            } else {
-                0.0
-            };
             for ((c, x), y) in self.cross[self.band.0..=self.band.1]
                 .iter_mut()
                 .zip(wa)
@@ -298,6 +339,36 @@ impl GccBank {
             {
                 *c = x * y.conj();
             }
+            if let Some(newest) = self.history.first_mut() {
+                newest[q * nb..(q + 1) * nb]
+                    .copy_from_slice(&self.cross[self.band.0..=self.band.1]);
+                self.history_norms[0][q] = (s1, s2);
+            }
+            // Past frames add their cross-spectra with their weights: the phase of a source
+            // that keeps its place adds up, that of reverberation and noise does not.
+            let (mut t1, mut t2) = (w0 * s1, w0 * w0 * s2);
+            if past > 0 {
+                for c in &mut self.cross[self.band.0..=self.band.1] {
+                    *c *= w0;
+                }
+                for i in 1..=past {
+                    let w = self.smooth_weights[i];
+                    let old = &self.history[i][q * nb..(q + 1) * nb];
+                    for (c, o) in self.cross[self.band.0..=self.band.1].iter_mut().zip(old) {
+                        *c += o * w;
+                    }
+                    let (a1, a2) = self.history_norms[i][q];
+                    t1 += w * a1;
+                    t2 += w * w * a2;
+                }
+            }
+            // Each bin adds a cosine of uniform phase (variance w^2 / 2) under incoherence.
+            let norm = if t1 > 0.0 {
+                null_var += t2 / (2.0 * t1 * t1);
+                1.0 / (2.0 * t1)
+            } else {
+                0.0
+            };
             // A real signal's DC and Nyquist bins are real; the band never needs their imaginary parts.
             self.cross[0].im = 0.0;
             let last = self.cross.len() - 1;
@@ -326,9 +397,15 @@ impl GccBank {
             }
             table[2 * p.half + 1] = table[2 * p.half];
         }
+        self.history_len = (self.history_len + 1).min(self.history.len().saturating_sub(1));
         self.pristine.copy_from_slice(&self.table);
         let np = self.pairs.len().max(1) as f64;
         self.null_var = null_var / (np * np);
+    }
+
+    /// Forgets the past frames' cross-spectra (after silence, or when the input jumps).
+    pub fn forget(&mut self) {
+        self.history_len = 0;
     }
 
     /// Restores the tables as computed, undoing every removal.
@@ -352,6 +429,55 @@ impl GccBank {
             let hi = ((centre + w).floor() as usize).min(end);
             for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
                 *t -= alpha * lerp(&self.kernel, (j as f64 - centre).abs());
+            }
+            table[end + 1] = table[end];
+        }
+    }
+
+    /// Removes the sources at `tdoa_s` (source-major, one TDOA per pair, seconds) from the tables
+    /// as computed, except source `keep`: for each pair, the amplitudes of all the sources are
+    /// fitted jointly, GCC(tau_i) = sum_j alpha_j K(tau_i - tau_j), so that a source whose lag
+    /// sits on another's lobe is not over-subtracted (on a small array the kernel's main lobe
+    /// spans most of the lag range). Each subtraction reaches `half_width_s` around its lag.
+    pub fn remove_jointly(&mut self, tdoa_s: &[Vec<f64>], keep: Option<usize>, half_width_s: f64) {
+        self.table.copy_from_slice(&self.pristine);
+        let n = tdoa_s.len();
+        if n == 0 {
+            return;
+        }
+        let w = half_width_s * self.steps_per_second;
+        let mut centres = vec![0.0; n];
+        let mut gram = nalgebra::DMatrix::<f64>::zeros(n, n);
+        let mut rhs = nalgebra::DVector::<f64>::zeros(n);
+        for (q, p) in self.pairs.iter().enumerate() {
+            let end = 2 * p.half;
+            for (c, t) in centres.iter_mut().zip(tdoa_s) {
+                *c = (p.half as f64 + t[q] * self.steps_per_second).clamp(0.0, end as f64);
+            }
+            let table = &mut self.table[p.offset..p.offset + end + 2];
+            for i in 0..n {
+                rhs[i] = lerp(table, centres[i]);
+                for j in 0..n {
+                    gram[(i, j)] = lerp(&self.kernel, (centres[i] - centres[j]).abs());
+                }
+                // A little ridge keeps coinciding lags from blowing the amplitudes up.
+                gram[(i, i)] += JOINT_RIDGE;
+            }
+            let alpha = gram
+                .clone()
+                .cholesky()
+                .map(|c| c.solve(&rhs))
+                .unwrap_or_else(|| rhs.clone());
+            for (i, &c) in centres.iter().enumerate() {
+                let a = alpha[i].max(0.0);
+                if Some(i) == keep || !a.is_finite() || a == 0.0 {
+                    continue;
+                }
+                let lo = (c - w).ceil().max(0.0) as usize;
+                let hi = ((c + w).floor() as usize).min(end);
+                for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    *t -= a * lerp(&self.kernel, (j as f64 - c).abs());
+                }
             }
             table[end + 1] = table[end];
         }

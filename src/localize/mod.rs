@@ -28,7 +28,7 @@ pub use config::{
 
 use activity::ActivityTracker;
 use directions::DirectionSearch;
-use gcc::GccBank;
+use gcc::{GccBank, GccSettings};
 use noise_floor::BinNoiseFloor;
 use region_contraction::PositionSearch;
 
@@ -90,6 +90,8 @@ struct ArrayState {
     tdoas: Vec<f64>,
     found: Vec<Vec3>,
     powers: Vec<f64>,
+    /// Per-pair TDOAs of every direction candidate found so far in the frame.
+    found_tdoas: Vec<Vec<f64>>,
 }
 
 /// The localiser stage: one state per array, no I/O, no threads, no clocks.
@@ -170,8 +172,11 @@ impl Localizer {
             array,
             self.cfg.frame,
             self.band,
-            self.cfg.interpolation,
-            self.cfg.phat_exponent,
+            GccSettings {
+                interpolation: self.cfg.interpolation,
+                beta: self.cfg.phat_exponent,
+                smoothing: &self.cfg.smoothing_weights(),
+            },
             self.sample_rate,
             c,
         );
@@ -204,6 +209,7 @@ impl Localizer {
             floor: BinNoiseFloor::new(bank.bin_power.len(), self.cfg.activity.noise_window_frames),
             found: Vec::with_capacity(self.cfg.max_candidates),
             powers: Vec::with_capacity(self.cfg.max_candidates),
+            found_tdoas: Vec::with_capacity(self.cfg.max_candidates),
             bank,
             searches,
             activity,
@@ -291,6 +297,7 @@ fn process_array(
 ) {
     let power = state.bank.whiten(spectra);
     if ActivityTracker::is_silent(&cfg.activity, power) {
+        state.bank.forget();
         return;
     }
     let snr = state.activity.update(power);
@@ -318,6 +325,8 @@ fn process_array(
         let mut map_mean = stats.mean;
         found.clear();
         state.powers.clear();
+        let lags = &mut state.found_tdoas;
+        lags.clear();
         while found.len() < cfg.max_candidates {
             if !found.is_empty() {
                 map_mean = searches.directions.grid_stats(bank).mean;
@@ -328,10 +337,13 @@ fn process_array(
             if !accept.accepts(p, map_mean) {
                 break;
             }
-            searches.directions.tdoas(&d, sps, &mut state.tdoas);
-            bank.remove(&state.tdoas, removal);
             found.push(d);
             state.powers.push(p);
+            let mut tdoas = vec![0.0; bank.len()];
+            searches.directions.tdoas(&d, sps, &mut tdoas);
+            lags.push(tdoas);
+            // All found sources are removed together, with amplitudes fitted jointly.
+            bank.remove_jointly(lags, None, removal);
         }
         for (d, &p) in found.iter().zip(&state.powers) {
             obs.doas.push(DirectionCandidate {
