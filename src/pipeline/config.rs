@@ -33,8 +33,12 @@ impl AudioMeasurementSource {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LocalizedMeasurements {
-    /// 3-D positions for linear arrays (as in the seed paper), directions for planar and
-    /// volumetric arrays, whose compact apertures resolve direction far better than range.
+    /// Directions for every array (a linear array's as the cone angle to its axis). A compact
+    /// array resolves direction, not range, and a linear one not even the roll about its axis:
+    /// the seed paper's 3-D candidates carry no more than the direction, and their range and
+    /// roll are the search's prior, which a tracker would take for measurements (on the
+    /// paper's room they pulled tracks 0.3-1 m off in depth). Positions only for arrays
+    /// without directions (a single microphone).
     #[default]
     Auto,
     /// 3-D position candidates from stochastic region contraction.

@@ -7,7 +7,7 @@ use crate::geometry::{ArrayShape, Layout, Vec3, deg};
 use crate::label::Label;
 use crate::localize::ArrayObservation;
 use crate::scene::format::{AudioMeasurementLine, DoaFile, TrackFile};
-use crate::scene::{AudioMeasurementFrame, DetectionFrame, Truth};
+use crate::scene::{AudioMeasurementFrame, DetectionFrame, FaceBox, Truth};
 use crate::separate::Target;
 use crate::track::{Measurement, Scan, SensorKey, TrackEstimate};
 
@@ -158,6 +158,8 @@ pub struct SensorRoutes {
     localized_positions: Vec<bool>,
     source: AudioMeasurementSource,
     device_seen: Vec<bool>,
+    /// (width, height) of every camera's image (px).
+    image_sizes: Vec<(f64, f64)>,
 }
 
 impl SensorRoutes {
@@ -179,11 +181,12 @@ impl SensorRoutes {
                 .map(|a| match cfg.localized_measurements {
                     LocalizedMeasurements::Positions => true,
                     LocalizedMeasurements::Directions => false,
-                    LocalizedMeasurements::Auto => matches!(a.shape(), ArrayShape::Linear { .. }),
+                    LocalizedMeasurements::Auto => matches!(a.shape(), ArrayShape::Point),
                 })
                 .collect(),
             source: cfg.audio_measurements,
             device_seen: vec![false; n],
+            image_sizes: layout.cameras.iter().map(|c| (c.width, c.height)).collect(),
             keys,
         }
     }
@@ -277,10 +280,14 @@ impl SensorRoutes {
     pub fn cameras(&self, frames: &[(usize, DetectionFrame)], scans: &mut Vec<Scan>) {
         for (j, f) in frames {
             if let Some(sensor) = self.cameras.get(*j).copied().flatten() {
+                let image = self.image_sizes.get(*j).copied();
                 let measurements = f
                     .boxes
                     .iter()
-                    .map(|b| Measurement::Pixel(b.measurement_point()))
+                    .map(|b| Measurement::Face {
+                        point: b.measurement_point(),
+                        size_px: face_size_px(b, image),
+                    })
                     .collect();
                 scans.push(Scan {
                     sensor,
@@ -289,6 +296,30 @@ impl SensorRoutes {
                 });
             }
         }
+    }
+}
+
+/// Width over height of a face box, used to recover the size of a box cut by the image border.
+const FACE_ASPECT: f64 = 0.16 / 0.22;
+
+/// Apparent size sqrt(w h) of a face box (px). A box cut by the image border keeps its full
+/// extent across the cut, from which the size follows with the usual aspect ratio.
+fn face_size_px(b: &FaceBox, image: Option<(f64, f64)>) -> f64 {
+    const EDGE_PX: f64 = 1.0;
+    let (cut_x, cut_y) = match image {
+        Some((w, h)) => (
+            b.x <= EDGE_PX || b.x + b.w >= w - EDGE_PX,
+            b.y <= EDGE_PX || b.y + b.h >= h - EDGE_PX,
+        ),
+        None => (false, false),
+    };
+    let from_height = b.h * FACE_ASPECT.sqrt();
+    let from_width = b.w / FACE_ASPECT.sqrt();
+    match (cut_x, cut_y) {
+        (false, false) => (b.w * b.h).sqrt(),
+        (true, false) => from_height,
+        (false, true) => from_width,
+        (true, true) => from_height.max(from_width),
     }
 }
 

@@ -262,13 +262,22 @@ fn camera_births<const N: usize>(
                 continue;
             };
             let partner = best_audio_partner(ctx, scans, free, &ray, (t0, t1));
-            let (t, rank) = match partner {
-                Some((_, _, t)) => (t, Rank::CameraWithAudio),
-                None => (0.5 * (t0 + t1), Rank::Camera),
+            // The box size, when measured, gives the depth: log size falls as -log depth, so
+            // its noise is a relative depth error.
+            let sized = sensor.face_size().and_then(|_| {
+                let t = size_depth(sensor, z, &ray, (t0, t1))?;
+                Some((t, t * sensor.r[(2, 2)].sqrt()))
+            });
+            let (t, rank) = match (sized, partner) {
+                (Some((t, _)), Some(_)) => (t, Rank::CameraWithAudio),
+                (Some((t, _)), None) => (t, Rank::Camera),
+                (None, Some((_, _, t))) => (t, Rank::CameraWithAudio),
+                (None, None) => (0.5 * (t0 + t1), Rank::Camera),
             };
+            let along = sized.map_or(0.25 * (t1 - t0), |(_, sd)| sd);
             let p = ray.at(t);
             let across = lateral_std(camera, &p, px_std, t);
-            let pos = elongated(&ray.direction, 0.25 * (t1 - t0), across);
+            let pos = elongated(&ray.direction, along, across);
             let mut density = make_density::<N>(&p, &pos, ctx.cfg);
             if let Some((sa, ja, _)) = partner {
                 let a = &scans[sa];
@@ -285,6 +294,25 @@ fn camera_births<const N: usize>(
             });
         }
     }
+}
+
+/// The depth along a camera ray at which a face of the sensor's size has the measured apparent
+/// size (log size in `z[2]`), within the interval; None when the model is undefined there.
+fn size_depth<const N: usize>(
+    sensor: &Sensor<N>,
+    z: &Vector3<f64>,
+    ray: &Ray,
+    interval: (f64, f64),
+) -> Option<f64> {
+    let cost = |t: f64| -> f64 {
+        let x = state_of::<N>(&ray.at(t), &Vec3::zeros());
+        sensor
+            .measure(&x)
+            .map_or(f64::INFINITY, |h| (z[2] - h[2]).powi(2))
+    };
+    // Sizes beyond the interval put the birth at its end, where the ray leaves the region.
+    let (t, v) = minimise_on_interval(cost, interval.0, interval.1);
+    v.is_finite().then_some(t)
 }
 
 /// Lateral position standard deviation of a pixel's ray at point `p`.
@@ -474,6 +502,8 @@ mod tests {
                 p_detect: 0.9,
                 clutter_rate: 1.0,
                 filter: FilterKind::Ukf,
+                face_size_m: None,
+                face_size_log_std: 0.1,
             },
             SensorModel::AudioDirection {
                 origin: Vec3::new(0.0, 2.0, 1.0),

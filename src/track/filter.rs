@@ -304,6 +304,8 @@ mod tests {
             p_detect: 0.9,
             clutter_rate: 1.0,
             filter,
+            face_size_m: None,
+            face_size_log_std: 0.1,
         })
     }
 

@@ -31,6 +31,14 @@ pub enum Measurement {
     },
     /// A camera point (px).
     Pixel(Pixel),
+    /// A camera face detection: the point (px) and the apparent face size sqrt(w h) of its box
+    /// (px), which falls with the distance from the camera and so measures depth.
+    Face {
+        /// The detected point (mouth or box centre).
+        point: Pixel,
+        /// Apparent size of the face box (px), the geometric mean of its width and height.
+        size_px: f64,
+    },
     /// A point of a generic linear sensor z = H x + noise.
     Point {
         /// The measured vector (its length is the sensor's measurement dimension, at most 3).
@@ -96,6 +104,12 @@ pub enum SensorModel {
         clutter_rate: f64,
         /// Single-object filter.
         filter: FilterKind,
+        /// Physical face (width, height) in metres when the detections' box sizes are used as a
+        /// depth measurement; `None` uses the points only.
+        face_size_m: Option<[f64; 2]>,
+        /// Standard deviation of the log of the apparent face size (detector jitter and the
+        /// spread of face sizes between people).
+        face_size_log_std: f64,
     },
     /// A generic linear sensor z = H x + N(0, R) (H is m x N with m <= 3).
     GenericPoint {
@@ -163,6 +177,8 @@ pub fn sensors_from_layout(layout: &Layout, cfg: &TrackerConfig) -> Vec<(SensorK
                 p_detect: c.p_detect,
                 clutter_rate: c.clutter_rate,
                 filter: c.filter,
+                face_size_m: c.use_box_size.then_some(c.face_size_m),
+                face_size_log_std: c.face_size_log_std,
             },
         ));
     }
@@ -178,8 +194,12 @@ pub(crate) enum Observation<const N: usize> {
     Direction { origin: Vec3, elevation: bool },
     /// Angle between `axis` and the direction from `origin`.
     Cone { origin: Vec3, axis: Vec3 },
-    /// Pixel through a calibrated camera.
-    Camera(Box<Camera>),
+    /// Pixel through a calibrated camera, and the log of the apparent size (px) of the box of
+    /// a face of `face_size` = (width, height) metres when set.
+    Camera {
+        camera: Box<Camera>,
+        face_size: Option<[f64; 2]>,
+    },
     /// A linear map of the state (rows beyond the dimension are zero).
     Linear(SMatrix<f64, 3, N>),
 }
@@ -334,18 +354,35 @@ impl<const N: usize> Sensor<N> {
                 p_detect,
                 clutter_rate,
                 filter,
+                face_size_m,
+                face_size_log_std,
             } => {
                 check_positive(*noise_std_px, index, "noise_std_px")?;
                 let var = noise_std_px * noise_std_px;
                 r[(0, 0)] = var;
                 r[(1, 1)] = var;
+                let mut dim = 2;
+                let mut log_density = -(camera.width * camera.height).ln();
+                if let Some([w, h]) = face_size_m {
+                    check_positive(*w, index, "face_size_m")?;
+                    check_positive(*h, index, "face_size_m")?;
+                    check_positive(*face_size_log_std, index, "face_size_log_std")?;
+                    r[(2, 2)] = face_size_log_std * face_size_log_std;
+                    dim = 3;
+                    // Clutter sizes are uniform in log over CLUTTER_SIZE_RANGE_PX.
+                    let [lo, hi] = CLUTTER_SIZE_RANGE_PX;
+                    log_density -= (hi / lo).ln().ln();
+                }
                 (
-                    Observation::Camera(camera.clone()),
-                    2,
+                    Observation::Camera {
+                        camera: camera.clone(),
+                        face_size: *face_size_m,
+                    },
+                    dim,
                     *p_detect,
                     0.0,
                     *clutter_rate,
-                    -(camera.width * camera.height).ln(),
+                    log_density,
                     *filter,
                     false,
                 )
@@ -424,7 +461,15 @@ impl<const N: usize> Sensor<N> {
     /// The camera of a camera sensor.
     pub fn camera(&self) -> Option<&Camera> {
         match &self.obs {
-            Observation::Camera(c) => Some(c),
+            Observation::Camera { camera, .. } => Some(camera),
+            _ => None,
+        }
+    }
+
+    /// The physical face (width, height) in metres of a camera sensor that measures box sizes.
+    pub fn face_size(&self) -> Option<[f64; 2]> {
+        match &self.obs {
+            Observation::Camera { face_size, .. } => *face_size,
             _ => None,
         }
     }
@@ -459,9 +504,15 @@ impl<const N: usize> Sensor<N> {
                     0.0,
                 ))
             }
-            Observation::Camera(c) => c
-                .project(&position_of(x))
-                .map(|p| Vector3::new(p.x, p.y, 0.0)),
+            Observation::Camera { camera, face_size } => {
+                let p = position_of(x);
+                let (px, j) = camera.project_with_jacobian(&p)?;
+                let s = match face_size {
+                    Some(size) => log_face_size(camera, &p, &j, *size)?,
+                    None => 0.0,
+                };
+                Some(Vector3::new(px.x, px.y, s))
+            }
         }
     }
 
@@ -518,14 +569,25 @@ impl<const N: usize> Sensor<N> {
                 }
                 Vector3::new(c.acos(), 0.0, 0.0)
             }
-            Observation::Camera(c) => {
-                let (p, j) = c.project_with_jacobian(&position_of(x))?;
+            Observation::Camera { camera, face_size } => {
+                let pos = position_of(x);
+                let (p, j) = camera.project_with_jacobian(&pos)?;
                 for r in 0..2 {
                     for col in 0..3 {
                         jac[(r, col)] = j[(r, col)];
                     }
                 }
-                Vector3::new(p.x, p.y, 0.0)
+                let s = match face_size {
+                    Some(size) => {
+                        let g = log_face_size_gradient(camera, &pos, *size)?;
+                        for col in 0..3 {
+                            jac[(2, col)] = g[col];
+                        }
+                        log_face_size(camera, &pos, &j, *size)?
+                    }
+                    None => 0.0,
+                };
+                Vector3::new(p.x, p.y, s)
             }
         };
         if z.iter().chain(jac.iter()).all(|v| v.is_finite()) {
@@ -547,8 +609,8 @@ impl<const N: usize> Sensor<N> {
     /// Detection probability of a track at state `x` given the scan's voice activity.
     pub fn p_detect_at(&self, x: &SVector<f64, N>, activity: Option<f64>) -> f64 {
         match &self.obs {
-            Observation::Camera(c) => {
-                if c.in_view(&position_of(x)) {
+            Observation::Camera { camera, .. } => {
+                if camera.in_view(&position_of(x)) {
                     self.p_detect
                 } else {
                     0.0
@@ -604,9 +666,22 @@ impl<const N: usize> Sensor<N> {
                 let u = direction_from_angles(*azimuth, e);
                 Ok(Vector3::new(u.dot(axis).clamp(-1.0, 1.0).acos(), 0.0, 0.0))
             }
-            (Observation::Camera(_), Measurement::Pixel(p)) => {
+            (Observation::Camera { face_size, .. }, Measurement::Pixel(p)) => {
+                // A sized sensor needs the size: a bare point is of another kind.
+                if face_size.is_some() {
+                    return Err(Rejection::WrongKind);
+                }
                 finite(p.as_slice())?;
                 Ok(Vector3::new(p.x, p.y, 0.0))
+            }
+            (Observation::Camera { face_size, .. }, Measurement::Face { point, size_px }) => {
+                finite(&[point.x, point.y, *size_px])?;
+                let s = match face_size {
+                    Some(_) if *size_px > 0.0 => size_px.ln(),
+                    Some(_) => return Err(Rejection::WrongKind),
+                    None => 0.0,
+                };
+                Ok(Vector3::new(point.x, point.y, s))
             }
             (Observation::Linear(_), Measurement::Point { z }) => {
                 if z.len() != self.dim {
@@ -622,6 +697,47 @@ impl<const N: usize> Sensor<N> {
             _ => Err(Rejection::WrongKind),
         }
     }
+}
+
+/// Range (px) over which the apparent sizes of false face detections are taken to be
+/// log-uniform.
+const CLUTTER_SIZE_RANGE_PX: [f64; 2] = [8.0, 512.0];
+
+/// Log of the apparent size sqrt(w h) (px) of the box around an upright face of `size` =
+/// (width, height) metres at `p`, turned towards the camera: the face's horizontal and vertical
+/// edges map through the projection Jacobian `j` at `p`, and the box is the axis-aligned hull
+/// of their images (so a face seen tilted, off the image centre of a pitched camera, gets the
+/// larger box a detector draws).
+pub(crate) fn log_face_size(
+    camera: &Camera,
+    p: &Vec3,
+    j: &nalgebra::Matrix2x3<f64>,
+    size: [f64; 2],
+) -> Option<f64> {
+    let los = p - camera.centre();
+    let right = Vec3::new(-los.y, los.x, 0.0).try_normalize(1e-9)?;
+    let (a, b) = (j * right * size[0], j * Vec3::z() * size[1]);
+    let w = a.x.abs() + b.x.abs();
+    let h = a.y.abs() + b.y.abs();
+    let area = w * h;
+    (area > 0.0 && area.is_finite()).then(|| 0.5 * area.ln())
+}
+
+/// Gradient of [`log_face_size`] with respect to the position (central differences with a step
+/// of 1e-4 of the distance to the camera; the size is smooth there).
+fn log_face_size_gradient(camera: &Camera, p: &Vec3, size: [f64; 2]) -> Option<Vec3> {
+    let h = 1e-4 * (p - camera.centre()).norm().max(1e-3);
+    let at = |q: Vec3| -> Option<f64> {
+        let (_, j) = camera.project_with_jacobian(&q)?;
+        log_face_size(camera, &q, &j, size)
+    };
+    let mut g = Vec3::zeros();
+    for i in 0..3 {
+        let mut e = Vec3::zeros();
+        e[i] = h;
+        g[i] = (at(p + e)? - at(p - e)?) / (2.0 * h);
+    }
+    Some(g)
 }
 
 /// The depth interval [near, far] (m) of a ray inside `region`, or None if it misses it.
