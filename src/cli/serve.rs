@@ -106,7 +106,10 @@ fn start_demo(registry: Arc<Registry>, addr: SocketAddr) {
         tracing::info!("simulating the demo room");
         match demo::start(registry, DemoOptions::default()).await {
             Ok(d) => {
-                println!("demo room ready: open http://{addr}/ in a browser (session {})", d.id);
+                println!(
+                    "demo room ready: open http://{addr}/ in a browser (session {})",
+                    d.id
+                );
             }
             Err(e) => tracing::error!("the demo room did not start: {e}"),
         }
