@@ -203,3 +203,43 @@ test('a session created from an uploaded calibration reads back over REST', asyn
   await page.screenshot({ path: join(outDir, 'dashboard-uploaded.png') });
   assert.deepEqual(pageErrors, [], 'no errors in the page');
 });
+
+test('the live view keeps drawing with 10 tracks updated 30 times a second', async () => {
+  // Runs on the live view the previous test left open (the uploaded room, no input): feeds
+  // synthetic estimates straight into the live state and counts animation frames.
+  await page.waitForFunction(() => window.avsep.live && window.avsep.live.info.cameras.length === 1);
+  const r = await page.evaluate(async () => {
+    const live = window.avsep.live;
+    let step = 0;
+    const feed = setInterval(() => {
+      const t = step * (1 / 30);
+      const tracks = Array.from({ length: 10 }, (_, i) => ({
+        label: `1.${i}`,
+        position: [3 + 2 * Math.cos(t + i), 2.5 + 2 * Math.sin(t + i), 1.6],
+        velocity: [0, 0, 0],
+        existence: 1,
+        speaking: i % 2,
+      }));
+      live.applyTracks({ type: 'tracks', step: step++, t, tracks });
+    }, 1000 / 30);
+    const gaps = [];
+    let last = performance.now();
+    await new Promise((done) => {
+      const end = last + 3000;
+      const tick = (now) => {
+        gaps.push(now - last);
+        last = now;
+        if (now < end) requestAnimationFrame(tick);
+        else done();
+      };
+      requestAnimationFrame(tick);
+    });
+    clearInterval(feed);
+    gaps.sort((a, b) => a - b);
+    return { frames: gaps.length, updates: step, p50: gaps[gaps.length >> 1], p95: gaps[Math.floor(gaps.length * 0.95)] };
+  });
+  console.log(`10 tracks at 30 updates/s: ${JSON.stringify(r)}`);
+  assert.ok(r.updates >= 60, JSON.stringify(r));
+  assert.ok(r.frames >= 45 && r.p50 < 40, `at least 15 frames/s: ${JSON.stringify(r)}`);
+  assert.deepEqual(pageErrors, []);
+});
