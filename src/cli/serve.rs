@@ -1,13 +1,16 @@
 //! `avsep serve`: hosts sessions behind the REST API and the WebSocket stream until ctrl-c or
 //! SIGTERM, then drains them (pipelines finish, streams close with a close frame).
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use clap::Args;
 
 use super::CliError;
 use crate::pipeline::config_doc::documented_toml;
-use crate::server::{Server, ServerConfig};
+use crate::server::demo::{self, DemoOptions};
+use crate::server::{Registry, Server, ServerConfig};
 
 /// Arguments of `avsep serve`. Flags override environment variables, which override the file.
 #[derive(Debug, Args)]
@@ -36,6 +39,11 @@ pub struct ServeArgs {
     /// Print the settings in force (documented TOML) and exit.
     #[arg(long)]
     pub print_config: bool,
+    /// Also run the demo room: a simulated session (uca8 preset, looped) streamed into the
+    /// server in real time; the dashboard at `/` finds it (its token is given to whoever may
+    /// list sessions).
+    #[arg(long, env = "AVSEP_DEMO")]
+    pub demo: bool,
 }
 
 impl ServeArgs {
@@ -92,6 +100,22 @@ async fn shutdown_signal() {
     }
 }
 
+/// Starts the demo room in the background; prints the dashboard's address once it streams.
+fn start_demo(registry: Arc<Registry>, addr: SocketAddr) {
+    tokio::spawn(async move {
+        tracing::info!("simulating the demo room");
+        match demo::start(registry, DemoOptions::default()).await {
+            Ok(d) => {
+                println!(
+                    "demo room ready: open http://{addr}/ in a browser (session {})",
+                    d.id
+                );
+            }
+            Err(e) => tracing::error!("the demo room did not start: {e}"),
+        }
+    });
+}
+
 /// Runs the command.
 pub fn run(args: ServeArgs) -> Result<(), CliError> {
     let cfg = args.settings()?;
@@ -118,6 +142,9 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
             .await
             .map_err(|e| CliError::input(format!("cannot listen on {}: {e}", cfg.bind)))?;
         let addr = server.local_addr().map_err(CliError::runtime)?;
+        if args.demo {
+            start_demo(server.registry(), addr);
+        }
         tracing::info!(%addr, admin_key = cfg.admin_key.is_some(), "avsep serving");
         // Scripts and tests read the address from stdout (the port may have been 0).
         println!("listening on http://{addr}");

@@ -18,7 +18,7 @@ use tower_http::trace::TraceLayer;
 use super::config::ServerConfig;
 use super::metrics::ServerMetrics;
 use super::registry::Registry;
-use super::{calibration, openapi, routes, stream};
+use super::{calibration, dashboard, openapi, routes, stream};
 
 /// What every handler shares.
 #[derive(Clone)]
@@ -91,6 +91,7 @@ pub fn router(registry: Arc<Registry>) -> Router {
         .route("/metrics", get(routes::prometheus))
         .route("/healthz", get(routes::healthz))
         .route("/readyz", get(routes::readyz))
+        .merge(dashboard::routes())
         .fallback(routes::not_found)
         .layer(DefaultBodyLimit::max(limits.max_body_bytes))
         // Spans carry the path only: query strings may hold a token.

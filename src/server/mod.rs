@@ -11,6 +11,8 @@ pub mod auth;
 mod calibration;
 pub mod client;
 pub mod config;
+mod dashboard;
+pub mod demo;
 pub mod engine;
 pub mod error;
 pub mod metrics;

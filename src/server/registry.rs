@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, OnceLock, RwLock};
 use std::time::{Duration, Instant};
 
 use axum::http::StatusCode;
@@ -15,6 +15,7 @@ use crate::scene::format::{SCENE_FORMAT, SceneFile};
 
 use super::auth;
 use super::config::ServerConfig;
+use super::demo::DemoAccess;
 use super::engine::Engine;
 use super::error::ApiError;
 use super::metrics::{ServerMetrics, Snapshot};
@@ -26,6 +27,8 @@ pub struct Registry {
     config: Arc<ServerConfig>,
     metrics: Arc<ServerMetrics>,
     draining: AtomicBool,
+    /// The built-in demo session, when one was started (`avsep serve --demo`).
+    demo: OnceLock<DemoAccess>,
 }
 
 impl Registry {
@@ -36,6 +39,7 @@ impl Registry {
             config,
             metrics,
             draining: AtomicBool::new(false),
+            demo: OnceLock::new(),
         }
     }
 
@@ -62,6 +66,17 @@ impl Registry {
     /// Whether no session is held.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// Publishes the demo session's credentials to the dashboard (once; later calls are
+    /// ignored).
+    pub fn set_demo(&self, access: DemoAccess) {
+        let _ = self.demo.set(access);
+    }
+
+    /// The demo session's credentials, while it is held.
+    pub fn demo(&self) -> Option<&DemoAccess> {
+        self.demo.get().filter(|d| self.get(&d.id).is_some())
     }
 
     fn check_capacity(&self) -> Result<(), ApiError> {

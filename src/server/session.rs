@@ -3,7 +3,7 @@
 //! calibration, track history, metrics). WebSocket streams, and later Zenoh, attach through
 //! [`SessionHandle`]: `submit` input, `subscribe` to output.
 
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TrySendError, sync_channel};
 use std::sync::{Arc, Mutex, RwLock};
@@ -210,6 +210,8 @@ pub struct Session {
     life: Mutex<Life>,
     history: Mutex<VecDeque<TracksSnapshot>>,
     live_labels: Mutex<Vec<Label>>,
+    /// The latest accepted frame of each camera (by index), for viewers (the dashboard).
+    latest_detections: Mutex<BTreeMap<usize, DetectionFrame>>,
     /// `max_gap_s` of the settings in force, in samples (read for every audio frame).
     max_gap_samples: AtomicU64,
     clients: AtomicUsize,
@@ -293,6 +295,7 @@ impl SessionHandle {
             }),
             history: Mutex::new(VecDeque::new()),
             live_labels: Mutex::new(Vec::new()),
+            latest_detections: Mutex::new(BTreeMap::new()),
             clients: AtomicUsize::new(0),
             next_client: AtomicU64::new(1),
             counters: SessionCounters::new(server.clone()),
@@ -446,7 +449,16 @@ impl Session {
     /// of order, a full queue (`queue_full`) or a closed session. Refusals are counted.
     pub fn submit(&self, client: ClientId, input: Input) -> Result<(), Rejection> {
         let kind = input.kind();
+        let camera_frame = match &input {
+            Input::Detections(f) => Some(f.clone()),
+            _ => None,
+        };
         let result = self.try_submit(client, input);
+        if let (Ok(()), Some(f)) = (&result, camera_frame)
+            && let Ok(mut latest) = self.latest_detections.lock()
+        {
+            latest.insert(f.camera, f);
+        }
         match &result {
             Ok(()) => self.counters.accepted(kind),
             Err(e) => self.counters.refused(e.code),
@@ -594,6 +606,14 @@ impl Session {
                 .cloned()
                 .collect(),
         }
+    }
+
+    /// The latest accepted frame of each camera, in camera order.
+    pub fn latest_detections(&self) -> Vec<DetectionFrame> {
+        self.latest_detections
+            .lock()
+            .map(|m| m.values().cloned().collect())
+            .unwrap_or_default()
     }
 
     /// The latest track estimate.
