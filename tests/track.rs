@@ -3,6 +3,7 @@
 
 use std::f64::consts::PI;
 
+use avsep::eval::ospa::OspaParams;
 use avsep::geometry::{Aabb, Camera, Layout, MicArray, Pixel, Vec3, angle_diff, azimuth_of};
 use avsep::label::Label;
 use avsep::track::{
@@ -16,93 +17,11 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Poisson};
 
 // ---------------------------------------------------------------------------------------------
-// OSPA (written here on purpose: eval/ is developed in parallel).
-
-/// Minimum-cost assignment of rows to columns (rows <= columns), Kuhn-Munkres with potentials.
-fn hungarian(cost: &[Vec<f64>]) -> Vec<usize> {
-    let (n, m) = (cost.len(), cost[0].len());
-    assert!(n <= m);
-    let (mut u, mut v) = (vec![0.0; n + 1], vec![0.0; m + 1]);
-    let (mut p, mut way) = (vec![0usize; m + 1], vec![0usize; m + 1]);
-    for i in 1..=n {
-        p[0] = i;
-        let mut j0 = 0;
-        let mut minv = vec![f64::INFINITY; m + 1];
-        let mut used = vec![false; m + 1];
-        loop {
-            used[j0] = true;
-            let i0 = p[j0];
-            let (mut delta, mut j1) = (f64::INFINITY, 0);
-            for j in 1..=m {
-                if !used[j] {
-                    let cur = cost[i0 - 1][j - 1] - u[i0] - v[j];
-                    if cur < minv[j] {
-                        minv[j] = cur;
-                        way[j] = j0;
-                    }
-                    if minv[j] < delta {
-                        delta = minv[j];
-                        j1 = j;
-                    }
-                }
-            }
-            for j in 0..=m {
-                if used[j] {
-                    u[p[j]] += delta;
-                    v[j] -= delta;
-                } else {
-                    minv[j] -= delta;
-                }
-            }
-            j0 = j1;
-            if p[j0] == 0 {
-                break;
-            }
-        }
-        loop {
-            let j1 = way[j0];
-            p[j0] = p[j1];
-            j0 = j1;
-            if j0 == 0 {
-                break;
-            }
-        }
-    }
-    let mut out = vec![0; n];
-    for j in 1..=m {
-        if p[j] != 0 {
-            out[p[j] - 1] = j - 1;
-        }
-    }
-    out
-}
+// OSPA, from the project's own evaluation module.
 
 /// OSPA distance of order p with cut-off c between two point sets.
 fn ospa(x: &[Vec3], y: &[Vec3], c: f64, p: f64) -> f64 {
-    let (small, large) = if x.len() <= y.len() { (x, y) } else { (y, x) };
-    if large.is_empty() {
-        return 0.0;
-    }
-    if small.is_empty() {
-        return c;
-    }
-    let cost: Vec<Vec<f64>> = small
-        .iter()
-        .map(|a| {
-            large
-                .iter()
-                .map(|b| (a - b).norm().min(c).powf(p))
-                .collect()
-        })
-        .collect();
-    let assignment = hungarian(&cost);
-    let matched: f64 = assignment
-        .iter()
-        .enumerate()
-        .map(|(i, &j)| cost[i][j])
-        .sum();
-    let extra = (large.len() - small.len()) as f64 * c.powf(p);
-    ((matched + extra) / large.len() as f64).powf(1.0 / p)
+    avsep::eval::ospa::ospa(x, y, OspaParams::new(c, p)).total
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! shortest-augmenting-path form).
 //!
 //! Every metric that pairs estimates with truths (OSPA, OSPA(2), CLEAR MOT, IDF1, the audio
-//! mapping) goes through [`assign`].
+//! mapping) goes through [`assign`], and so does the GM-PHD tracker's label matching.
 
 /// A rectangular cost matrix stored row by row.
 #[derive(Debug, Clone, PartialEq)]

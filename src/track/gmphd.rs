@@ -11,13 +11,14 @@ use std::collections::HashMap;
 
 use nalgebra::SVector;
 
+use crate::eval::assignment::{CostMatrix, assign};
+
 use super::birth::{BirthContext, BirthScan, BirthTerm, births_from_measurements};
 use super::config::{ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::{Transition, prepare};
 use super::gaussian::Gaussian;
 use super::glmb::{clamp_region, compile_sensors};
-use super::hungarian::assign;
 use super::joint_update::clamp_position;
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
@@ -256,10 +257,12 @@ impl<const N: usize> GmphdTracker<N> {
                     .collect()
             })
             .collect();
-        let matches = assign(&cost);
+        let matches = assign(&CostMatrix::from_fn(est.len(), predicted.len(), |i, j| {
+            cost[i][j]
+        }));
         let mut labels: Vec<Option<Label>> = vec![None; est.len()];
-        for (i, m) in matches.iter().enumerate() {
-            if let Some(j) = m.filter(|&j| cost[i][j] < big) {
+        for (i, j) in matches.pairs {
+            if cost[i][j] < big {
                 labels[i] = Some(predicted[j].0);
             }
         }

@@ -29,7 +29,8 @@
 //! - `gibbs`, `joint_update`, `glmb`: the MS-GLMB joint prediction-update (see below).
 //! - `birth`: fixed birth points and measurement-driven births.
 //! - `voice`: the per-track talking/silent mode behind the audio detection probability.
-//! - `estimator`: reporting hysteresis and `speaking` smoothing; `gmphd`, `hungarian`: the GM-PHD.
+//! - `estimator`: reporting hysteresis and `speaking` smoothing; `gmphd`: the GM-PHD (its label matching uses
+//!   `eval::assignment`, the project's one assignment solver).
 //!
 //! # The GLMB step
 //!
@@ -68,7 +69,6 @@ mod gaussian;
 mod gibbs;
 mod glmb;
 mod gmphd;
-mod hungarian;
 mod joint_update;
 mod motion;
 mod occlusion;
