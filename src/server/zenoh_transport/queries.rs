@@ -68,9 +68,9 @@ pub(super) fn enqueue(tx: Sender<Query>, create: bool) -> impl Fn(Query) + Send 
 /// Serves queued queries one at a time until the transport closes.
 pub(super) async fn serve(shared: Arc<Shared>, mut rx: Receiver<Query>) {
     while let Some(q) = rx.recv().await {
-        let answer = answer(&shared, &q).await;
+        let result = answer(&shared, &q).await;
         let key = q.key_expr().clone();
-        match answer {
+        match result {
             Ok(Some(body)) => {
                 if let Err(e) = q.reply(key, body).encoding(Encoding::APPLICATION_JSON).await {
                     tracing::debug!("zenoh reply failed: {e}");
