@@ -173,7 +173,10 @@ mod tests {
 
     #[test]
     fn session_queries_parse() {
-        assert_eq!(SessionQuery::parse(SESSIONS_CREATE), Some(SessionQuery::Create));
+        assert_eq!(
+            SessionQuery::parse(SESSIONS_CREATE),
+            Some(SessionQuery::Create)
+        );
         assert_eq!(SessionQuery::parse(SESSIONS_LIST), Some(SessionQuery::List));
         assert_eq!(
             SessionQuery::parse(&session_query("0a1b")),
@@ -185,7 +188,10 @@ mod tests {
 
     #[test]
     fn output_keys_and_closed_message() {
-        assert_eq!(output_audio("ab", Label::new(3, 1)), "avsep/ab/out/audio/3.1");
+        assert_eq!(
+            output_audio("ab", Label::new(3, 1)),
+            "avsep/ab/out/audio/3.1"
+        );
         let m = ClosedMessage {
             state: SessionState::Finished,
             reason: "input finished".into(),

@@ -116,7 +116,11 @@ mod tests {
         assert!(!c.multicast_scouting && c.connect.is_empty());
         let z = c.to_zenoh().unwrap();
         assert_eq!(z.get_json("scouting/multicast/enabled").unwrap(), "false");
-        assert!(z.get_json("listen/endpoints").unwrap().contains("127.0.0.1:7447"));
+        assert!(
+            z.get_json("listen/endpoints")
+                .unwrap()
+                .contains("127.0.0.1:7447")
+        );
     }
 
     #[test]

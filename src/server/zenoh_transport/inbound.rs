@@ -69,7 +69,9 @@ fn on_sample(s: &SessionHandle, admin: Option<&str>, sample: &Sample) -> Result<
             s,
             "unknown_key",
             "key",
-            format!("{key:?} is not an input key (in/audio, in/detections/<camera>, in/doa/<array>, in/finish)"),
+            format!(
+                "{key:?} is not an input key (in/audio, in/detections/<camera>, in/doa/<array>, in/finish)"
+            ),
         ));
     };
     let accepts = |p: &str| s.token_matches(p) || admin.is_some_and(|k| auth::same_secret(k, p));
@@ -104,7 +106,12 @@ fn on_sample(s: &SessionHandle, admin: Option<&str>, sample: &Sample) -> Result<
 
 fn message(s: &SessionHandle, payload: &[u8]) -> Result<ClientMessage, ErrorBody> {
     let text = std::str::from_utf8(payload).map_err(|e| {
-        refused(s, "bad_json", "", format!("the payload is not UTF-8 JSON: {e}"))
+        refused(
+            s,
+            "bad_json",
+            "",
+            format!("the payload is not UTF-8 JSON: {e}"),
+        )
     })?;
     parse_message(text).map_err(|e| {
         s.counters.refused(&e.code);
@@ -150,7 +157,10 @@ fn doa(s: &SessionHandle, key_array: &str, payload: &[u8]) -> Result<Input, Erro
             s,
             "key_mismatch",
             "array",
-            format!("array {:?} published under the key of array {key_array:?}", line.array),
+            format!(
+                "array {:?} published under the key of array {key_array:?}",
+                line.array
+            ),
         ));
     }
     device_frame(&s.layout(), &line)

@@ -42,9 +42,17 @@ pub(super) async fn fan_out(
                 s.counters.output_dropped(n);
                 let warn = ServerMessage::Event(SessionEvent::Warning {
                     code: "output_dropped".into(),
-                    message: format!("the Zenoh publisher fell behind and missed {n} output messages"),
+                    message: format!(
+                        "the Zenoh publisher fell behind and missed {n} output messages"
+                    ),
                 });
-                put(&shared.zenoh, events.clone(), json(&warn), Encoding::APPLICATION_JSON).await;
+                put(
+                    &shared.zenoh,
+                    events.clone(),
+                    json(&warn),
+                    Encoding::APPLICATION_JSON,
+                )
+                .await;
             }
             Err(RecvError::Closed) => break,
         }
@@ -94,9 +102,17 @@ fn encode(s: &SessionHandle, out: &Output, events: &str) -> Option<(String, Vec<
                 samples: samples.clone(),
                 encoding: SampleEncoding::F32,
             };
-            (output_audio(id, *label), frame.encode(), Encoding::APPLICATION_OCTET_STREAM)
+            (
+                output_audio(id, *label),
+                frame.encode(),
+                Encoding::APPLICATION_OCTET_STREAM,
+            )
         }
-        Output::Event(e) => (events.to_string(), json(&ServerMessage::Event(e.clone())), j),
+        Output::Event(e) => (
+            events.to_string(),
+            json(&ServerMessage::Event(e.clone())),
+            j,
+        ),
         Output::Error { to, error } if to.is_none_or(|c| c == ZENOH_CLIENT) => {
             let m = ServerMessage::Error {
                 error: error.clone(),

@@ -34,7 +34,11 @@ fn error(code: &str, field: Option<&str>, message: impl Into<String>) -> ErrorBo
 
 fn reply_error(q: &Query, e: ErrorBody) {
     let body = serde_json::to_vec(&ErrorResponse { error: e }).unwrap_or_default();
-    if let Err(err) = q.reply_err(body).encoding(Encoding::APPLICATION_JSON).wait() {
+    if let Err(err) = q
+        .reply_err(body)
+        .encoding(Encoding::APPLICATION_JSON)
+        .wait()
+    {
         tracing::debug!("zenoh error reply failed: {err}");
     }
 }
@@ -72,7 +76,11 @@ pub(super) async fn serve(shared: Arc<Shared>, mut rx: Receiver<Query>) {
         let key = q.key_expr().clone();
         match result {
             Ok(Some(body)) => {
-                if let Err(e) = q.reply(key, body).encoding(Encoding::APPLICATION_JSON).await {
+                if let Err(e) = q
+                    .reply(key, body)
+                    .encoding(Encoding::APPLICATION_JSON)
+                    .await
+                {
                     tracing::debug!("zenoh reply failed: {e}");
                 }
             }
@@ -87,8 +95,12 @@ fn admin_only(shared: &Shared, q: &Query) -> Result<(), ErrorBody> {
     let Some(key) = shared.registry.config().admin_key.as_deref() else {
         return Ok(());
     };
-    check_credential(q.attachment(), |p| auth::same_secret(key, p), "this query (admin key)")
-        .map_err(|(code, message)| error(code, Some("attachment"), message))
+    check_credential(
+        q.attachment(),
+        |p| auth::same_secret(key, p),
+        "this query (admin key)",
+    )
+    .map_err(|(code, message)| error(code, Some("attachment"), message))
 }
 
 async fn answer(shared: &Shared, q: &Query) -> Result<Option<Vec<u8>>, ErrorBody> {
@@ -97,14 +109,19 @@ async fn answer(shared: &Shared, q: &Query) -> Result<Option<Vec<u8>>, ErrorBody
         return Err(error(
             "unknown_key",
             Some("key"),
-            format!("{key:?} is not a session query (avsep/sessions/create, avsep/sessions/list, avsep/sessions/<id>)"),
+            format!(
+                "{key:?} is not a session query (avsep/sessions/create, avsep/sessions/list, avsep/sessions/<id>)"
+            ),
         ));
     };
     let registry = &shared.registry;
     let body = match what {
         SessionQuery::Create => {
             admin_only(shared, q)?;
-            let payload = q.payload().map(|p| p.to_bytes().into_owned()).unwrap_or_default();
+            let payload = q
+                .payload()
+                .map(|p| p.to_bytes().into_owned())
+                .unwrap_or_default();
             let max = registry.config().limits.max_body_bytes;
             if payload.len() > max {
                 return Err(error(
