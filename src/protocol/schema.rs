@@ -16,6 +16,9 @@ pub fn protocol_schemas() -> Vec<(&'static str, serde_json::Value)> {
         ("client-message.schema.json", v(schema_for!(ClientMessage))),
         ("server-message.schema.json", v(schema_for!(ServerMessage))),
         (PIPELINE_CONFIG_SCHEMA, v(schema_for!(PipelineConfig))),
-        ("zenoh-closed-message.schema.json", v(schema_for!(ClosedMessage))),
+        (
+            "zenoh-closed-message.schema.json",
+            v(schema_for!(ClosedMessage)),
+        ),
     ]
 }

@@ -113,10 +113,7 @@ fn message(s: &SessionHandle, payload: &[u8]) -> Result<ClientMessage, ErrorBody
             format!("the payload is not UTF-8 JSON: {e}"),
         )
     })?;
-    parse_message(text).map_err(|e| {
-        s.counters.refused(&e.code);
-        e
-    })
+    parse_message(text).inspect_err(|e| s.counters.refused(&e.code))
 }
 
 fn wrong_type(s: &SessionHandle, expected: &str) -> ErrorBody {
