@@ -1,5 +1,6 @@
-//! `avsep serve`: hosts sessions behind the REST API and the WebSocket stream until ctrl-c or
-//! SIGTERM, then drains them (pipelines finish, streams close with a close frame).
+//! `avsep serve`: hosts sessions behind the REST API, the WebSocket stream and (unless disabled)
+//! Zenoh until ctrl-c or SIGTERM, then drains them (pipelines finish, streams close with a close
+//! frame or a `closed` message).
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -10,6 +11,7 @@ use clap::Args;
 use super::CliError;
 use crate::pipeline::config_doc::documented_toml;
 use crate::server::demo::{self, DemoOptions};
+use crate::server::zenoh_transport::{ZenohMode, ZenohTransport};
 use crate::server::{Registry, Server, ServerConfig};
 
 /// Arguments of `avsep serve`. Flags override environment variables, which override the file.
@@ -33,6 +35,18 @@ pub struct ServeArgs {
     /// Inbound messages queued per session before `queue_full`.
     #[arg(long, env = "AVSEP_QUEUE_DEPTH")]
     pub queue_depth: Option<usize>,
+    /// Do not join Zenoh (REST and WebSocket only).
+    #[arg(long, env = "AVSEP_NO_ZENOH")]
+    pub no_zenoh: bool,
+    /// Zenoh role: peer, client or router [default: peer].
+    #[arg(long, env = "AVSEP_ZENOH_MODE", value_parser = parse_mode)]
+    pub zenoh_mode: Option<ZenohMode>,
+    /// Zenoh endpoints to connect to, comma-separated (e.g. `tcp/10.0.0.5:7447`).
+    #[arg(long, env = "AVSEP_ZENOH_CONNECT", value_delimiter = ',')]
+    pub zenoh_connect: Option<Vec<String>>,
+    /// Zenoh endpoints to listen on, comma-separated [default: tcp/127.0.0.1:7447].
+    #[arg(long, env = "AVSEP_ZENOH_LISTEN", value_delimiter = ',')]
+    pub zenoh_listen: Option<Vec<String>>,
     /// Log as JSON lines (for log collectors) instead of text.
     #[arg(long, env = "AVSEP_LOG_JSON")]
     pub log_json: bool,
@@ -73,9 +87,26 @@ impl ServeArgs {
         if let Some(n) = self.queue_depth {
             cfg.limits.queue_depth = n;
         }
+        if self.no_zenoh {
+            cfg.zenoh.enabled = false;
+        }
+        if let Some(m) = self.zenoh_mode {
+            cfg.zenoh.mode = m;
+        }
+        if let Some(c) = &self.zenoh_connect {
+            cfg.zenoh.connect = c.clone();
+        }
+        if let Some(l) = &self.zenoh_listen {
+            cfg.zenoh.listen = l.clone();
+        }
         cfg.validate().map_err(CliError::input)?;
         Ok(cfg)
     }
+}
+
+fn parse_mode(s: &str) -> Result<ZenohMode, String> {
+    serde_json::from_value(serde_json::Value::String(s.to_string()))
+        .map_err(|_| format!("{s:?} is not a Zenoh mode (peer, client, router)"))
 }
 
 /// Resolves on ctrl-c or SIGTERM.
@@ -146,12 +177,22 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
             start_demo(server.registry(), addr);
         }
         tracing::info!(%addr, admin_key = cfg.admin_key.is_some(), "avsep serving");
+        let zenoh = if cfg.zenoh.enabled {
+            let z = ZenohTransport::start(&cfg.zenoh, server.registry())
+                .await
+                .map_err(|e| CliError::input(format!("cannot join Zenoh: {e}")))?;
+            tracing::info!(listen = ?cfg.zenoh.listen, connect = ?cfg.zenoh.connect, "zenoh joined");
+            Some(z)
+        } else {
+            None
+        };
         // Scripts and tests read the address from stdout (the port may have been 0).
         println!("listening on http://{addr}");
-        server
-            .run(shutdown_signal())
-            .await
-            .map_err(CliError::runtime)
+        let served = server.run(shutdown_signal()).await.map_err(CliError::runtime);
+        if let Some(z) = zenoh {
+            z.close(std::time::Duration::from_secs(2)).await;
+        }
+        served
     })?;
     tracing::info!("stopped");
     Ok(())

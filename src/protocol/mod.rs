@@ -6,6 +6,7 @@ pub mod inbound;
 pub mod messages;
 pub mod rest;
 pub mod schema;
+pub mod zenoh_keys;
 
 pub use audio_frame::{AudioFrame, FrameError, LabelAudioFrame, SampleEncoding};
 pub use messages::{

@@ -6,6 +6,7 @@ use schemars::schema_for;
 use crate::pipeline::PipelineConfig;
 
 use super::rest::PIPELINE_CONFIG_SCHEMA;
+use super::zenoh_keys::ClosedMessage;
 use super::{ClientMessage, ServerMessage};
 
 /// `(file name under api/, schema)` for every message document of the stream protocol.
@@ -15,5 +16,9 @@ pub fn protocol_schemas() -> Vec<(&'static str, serde_json::Value)> {
         ("client-message.schema.json", v(schema_for!(ClientMessage))),
         ("server-message.schema.json", v(schema_for!(ServerMessage))),
         (PIPELINE_CONFIG_SCHEMA, v(schema_for!(PipelineConfig))),
+        (
+            "zenoh-closed-message.schema.json",
+            v(schema_for!(ClosedMessage)),
+        ),
     ]
 }

@@ -7,6 +7,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::pipeline::ConfigError;
 
+use super::zenoh_transport::ZenohConfig;
+
 /// Server settings. Every field has a default; unknown fields are errors.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
@@ -23,6 +25,8 @@ pub struct ServerConfig {
     pub drain_timeout_s: f64,
     /// Limits that bound memory and work.
     pub limits: Limits,
+    /// How the server joins Zenoh (sessions stream over Zenoh as well as WebSocket).
+    pub zenoh: ZenohConfig,
 }
 
 impl Default for ServerConfig {
@@ -33,6 +37,7 @@ impl Default for ServerConfig {
             cors_origins: Vec::new(),
             drain_timeout_s: 10.0,
             limits: Limits::default(),
+            zenoh: ZenohConfig::default(),
         }
     }
 }
@@ -155,7 +160,7 @@ impl ServerConfig {
                 "must be in (0, 600] s",
             ));
         }
-        Ok(())
+        self.zenoh.validate()
     }
 }
 

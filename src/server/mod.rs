@@ -2,8 +2,9 @@
 //!
 //! A [`registry::Registry`] holds the sessions; each session ([`session::SessionHandle`]) owns a
 //! pipeline on its own worker thread fed through a bounded queue, and broadcasts what it
-//! produces. Transports (the WebSocket here, Zenoh later) only `submit` input and `subscribe` to
-//! output, so they can attach to the same session side by side. See api/openapi.yaml and
+//! produces. Transports (the WebSocket and Zenoh) only `submit` input and `subscribe` to
+//! output, so they can attach to the same session side by side; the Zenoh transport
+//! ([`zenoh_transport::ZenohTransport`]) attaches to every session the registry holds. See api/openapi.yaml and
 //! api/protocol.md for the contracts.
 
 pub mod app;
@@ -22,6 +23,7 @@ mod routes;
 pub mod session;
 pub mod stream;
 mod worker;
+pub mod zenoh_transport;
 
 pub use app::{Server, router};
 pub use config::{Limits, ServerConfig};

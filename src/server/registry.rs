@@ -21,9 +21,13 @@ use super::error::ApiError;
 use super::metrics::{ServerMetrics, Snapshot};
 use super::session::{SessionHandle, SessionSpec};
 
+/// Called with every session the registry starts holding (see [`Registry::on_insert`]).
+pub type InsertHook = Box<dyn Fn(&SessionHandle) + Send + Sync>;
+
 /// Every session of one server.
 pub struct Registry {
     sessions: RwLock<BTreeMap<String, SessionHandle>>,
+    hooks: RwLock<Vec<InsertHook>>,
     config: Arc<ServerConfig>,
     metrics: Arc<ServerMetrics>,
     draining: AtomicBool,
@@ -36,6 +40,7 @@ impl Registry {
     pub fn new(config: Arc<ServerConfig>, metrics: Arc<ServerMetrics>) -> Self {
         Self {
             sessions: RwLock::new(BTreeMap::new()),
+            hooks: RwLock::new(Vec::new()),
             config,
             metrics,
             draining: AtomicBool::new(false),
@@ -172,8 +177,23 @@ impl Registry {
             ));
         }
         sessions.insert(handle.id().to_string(), handle.clone());
+        drop(sessions);
         self.metrics.session_created();
+        if let Ok(hooks) = self.hooks.read() {
+            for hook in hooks.iter() {
+                hook(&handle);
+            }
+        }
         Ok(handle)
+    }
+
+    /// Registers `hook`, called with every session inserted from now on before its creator gets
+    /// it (so a transport that subscribes in the hook misses none of its output). A hook must not
+    /// block.
+    pub fn on_insert(&self, hook: InsertHook) {
+        if let Ok(mut hooks) = self.hooks.write() {
+            hooks.push(hook);
+        }
     }
 
     /// The session with this id.
