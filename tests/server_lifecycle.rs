@@ -438,8 +438,10 @@ async fn a_panicking_pipeline_fails_its_session_only() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn serve_drains_sessions_on_sigterm() {
+    // No Zenoh: its default listener (tcp/127.0.0.1:7447) is one fixed port that concurrent
+    // test runs on the machine would contend for.
     let mut child = Command::new(env!("CARGO_BIN_EXE_avsep"))
-        .args(["serve", "--bind", "127.0.0.1:0"])
+        .args(["serve", "--bind", "127.0.0.1:0", "--no-zenoh"])
         .env("AVSEP_LOG", "warn")
         .stdout(Stdio::piped())
         .stderr(Stdio::null())

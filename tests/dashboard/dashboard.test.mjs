@@ -40,7 +40,8 @@ function freePort() {
 
 /** Starts the server and resolves once stdout shows `pattern`. */
 function startServer(port) {
-  const child = spawn(bin, ['serve', '--demo', '--bind', `127.0.0.1:${port}`], {
+  // --no-zenoh: Zenoh's default listener is a fixed port that concurrent test runs contend for.
+  const child = spawn(bin, ['serve', '--demo', '--no-zenoh', '--bind', `127.0.0.1:${port}`], {
     env: { ...process.env, AVSEP_LOG: process.env.AVSEP_LOG || 'warn' },
     stdio: ['ignore', 'pipe', 'inherit'],
   });
