@@ -366,15 +366,16 @@ pub fn main(args: impl IntoIterator<Item = std::ffi::OsString>) -> std::process:
     let args = EdgeArgs::parse_from(args);
     match run(args) {
         Ok(r) => {
+            let mut labels: Vec<String> = r.labels.iter().take(8).map(Label::to_string).collect();
+            if r.labels.len() > labels.len() {
+                labels.push("...".into());
+            }
             println!(
-                "session {}: {} steps, labels [{}], {} refused, {}",
+                "session {}: {} steps, {} labels [{}], {} refused, {}",
                 r.session,
                 r.tracks.len(),
-                r.labels
-                    .iter()
-                    .map(Label::to_string)
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                r.labels.len(),
+                labels.join(", "),
                 r.errors.len(),
                 r.closed.as_ref().map_or("not closed".into(), |c| format!(
                     "closed: {} ({})",

@@ -7,7 +7,7 @@ use std::time::Duration;
 use avsep::protocol::rest::SessionInfo;
 use avsep::server::client::FeedItem;
 use cpal::traits::{DeviceTrait, HostTrait, StreamTrait};
-use cpal::{FromSample, Sample, SampleFormat, SizedSample};
+use cpal::{FromSample, SampleFormat, SizedSample};
 use tokio::sync::mpsc::{UnboundedReceiver, UnboundedSender, unbounded_channel};
 
 use super::live::LiveFeed;
@@ -45,25 +45,36 @@ pub fn start(
         .supported_input_configs()
         .map_err(|e| format!("{dev}: {e}"))?
         .collect();
+    // The formats the callback converts, best first.
+    let rank = |f: SampleFormat| {
+        [SampleFormat::F32, SampleFormat::I32, SampleFormat::I16]
+            .iter()
+            .position(|g| *g == f)
+    };
     let range = ranges
         .iter()
-        .find(|r| {
-            r.channels() == channels && (r.min_sample_rate()..=r.max_sample_rate()).contains(&rate)
+        .filter(|r| {
+            r.channels() == channels
+                && (r.min_sample_rate()..=r.max_sample_rate()).contains(&rate)
+                && rank(r.sample_format()).is_some()
         })
+        .min_by_key(|r| rank(r.sample_format()))
         .ok_or_else(|| {
             let offered: Vec<String> = ranges
                 .iter()
                 .map(|r| {
                     format!(
-                        "{} ch {}-{} Hz",
+                        "{} ch {}-{} Hz {}",
                         r.channels(),
                         r.min_sample_rate(),
-                        r.max_sample_rate()
+                        r.max_sample_rate(),
+                        r.sample_format()
                     )
                 })
                 .collect();
             format!(
-                "{dev} cannot capture {channels} channels at {rate} Hz (session {}); it offers {}",
+                "{dev} cannot capture {channels} channels at {rate} Hz as f32, i32 or i16 \
+                 (session {}); it offers {}",
                 info.id,
                 offered.join(", ")
             )

@@ -7,7 +7,10 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -138,3 +141,25 @@ def test_a_bad_session_body_names_the_field(server: str, scene: Path) -> None:
         assert e.status == 422 and e.field == "arrays[0].mics[0]", e
     else:
         raise AssertionError("the server accepted a 2-D microphone")
+
+
+def test_the_example_streams_a_wav_file_and_saves_each_voice(
+    server: str, scene: Path, offline: Path, tmp_path: Path
+) -> None:
+    example = Path(__file__).resolve().parents[1] / "examples" / "stream_wav.py"
+    r = subprocess.run(
+        [sys.executable, example, "--url", server, "--calibration", scene / "scene.json",
+         "--wav", scene / "audio.wav", "--detections", scene / "detections.jsonl",
+         "--settings", json.dumps({"seed": 5}), "--save-audio", tmp_path / "voices"],
+        capture_output=True, text=True, timeout=120,
+        env={**os.environ, "PYTHONPATH": str(example.parents[1])},
+    )
+    assert r.returncode == 0, r.stderr
+    steps = [line for line in r.stdout.splitlines() if line.startswith("step ")]
+    assert len(steps) == len(offline_tracks(offline))
+    voices = {p.stem for p in (tmp_path / "voices").glob("*.wav")}
+    assert voices == {p.stem for p in (offline / "audio").glob("*.wav")}
+    for label in voices:
+        _, got = read_wav(tmp_path / "voices" / f"{label}.wav")
+        _, want = read_wav(offline / "audio" / f"{label}.wav")
+        assert np.array_equal(got, want), label
