@@ -39,6 +39,47 @@ pub fn start(
             .default_input_device()
             .ok_or("this machine has no default input device")?,
     };
+    let config = input_config(&dev, info)?;
+    let (channels, rate) = (config.channels(), config.sample_rate());
+    let (tx, rx) = unbounded_channel();
+    let feed = Arc::new(Mutex::new(Some((feed, tx))));
+    let stream = match config.sample_format() {
+        SampleFormat::F32 => build::<f32>(&dev, config.config(), feed.clone()),
+        SampleFormat::I16 => build::<i16>(&dev, config.config(), feed.clone()),
+        SampleFormat::I32 => build::<i32>(&dev, config.config(), feed.clone()),
+        f => return Err(format!("{dev}: sample format {f} is not supported here")),
+    }?;
+    stream.play().map_err(|e| format!("{dev}: {e}"))?;
+    eprintln!("capturing {channels} channels at {rate} Hz from {dev}");
+    let stop = tokio::spawn(async move {
+        match seconds {
+            Some(s) => tokio::time::sleep(Duration::from_secs_f64(s.max(0.0))).await,
+            None => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+        // The last partial block and the side messages left, then the feed's end (`finish`).
+        if let Some((feed, tx)) = feed.lock().ok().and_then(|mut f| f.take()) {
+            for item in feed.finish() {
+                let _ = tx.send(item);
+            }
+        }
+    });
+    Ok((
+        rx,
+        Capture {
+            _stream: stream,
+            _stop: stop,
+        },
+    ))
+}
+
+/// The device's input configuration at the session's rate and channel count, in a sample format
+/// the callback converts.
+fn input_config(
+    dev: &cpal::Device,
+    info: &SessionInfo,
+) -> Result<cpal::SupportedStreamConfig, String> {
     let channels = info.channels as u16;
     let rate = info.sample_rate;
     let ranges: Vec<_> = dev
@@ -79,38 +120,7 @@ pub fn start(
                 offered.join(", ")
             )
         })?;
-    let config = range.with_sample_rate(rate);
-    let (tx, rx) = unbounded_channel();
-    let feed = Arc::new(Mutex::new(Some((feed, tx))));
-    let stream = match config.sample_format() {
-        SampleFormat::F32 => build::<f32>(&dev, config.config(), feed.clone()),
-        SampleFormat::I16 => build::<i16>(&dev, config.config(), feed.clone()),
-        SampleFormat::I32 => build::<i32>(&dev, config.config(), feed.clone()),
-        f => return Err(format!("{dev}: sample format {f} is not supported here")),
-    }?;
-    stream.play().map_err(|e| format!("{dev}: {e}"))?;
-    eprintln!("capturing {channels} channels at {rate} Hz from {dev}");
-    let stop = tokio::spawn(async move {
-        match seconds {
-            Some(s) => tokio::time::sleep(Duration::from_secs_f64(s.max(0.0))).await,
-            None => {
-                let _ = tokio::signal::ctrl_c().await;
-            }
-        }
-        // The last partial block and the side messages left, then the feed's end (`finish`).
-        if let Some((feed, tx)) = feed.lock().ok().and_then(|mut f| f.take()) {
-            for item in feed.finish() {
-                let _ = tx.send(item);
-            }
-        }
-    });
-    Ok((
-        rx,
-        Capture {
-            _stream: stream,
-            _stop: stop,
-        },
-    ))
+    Ok(range.with_sample_rate(rate))
 }
 
 type Shared = Arc<Mutex<Option<(LiveFeed, UnboundedSender<FeedItem>)>>>;
