@@ -199,6 +199,32 @@ impl<const N: usize> GlmbTracker<N> {
         }
     }
 
+    /// The track densities that suppress births: every entry of weight at least
+    /// `birth.suppress_existence`, except those within `SAME_DENSITY_M` of a heavier entry of
+    /// the same label (the association histories of a label mostly differ by one measurement
+    /// and give nearly the same density; gating against each would cost a filter preparation
+    /// per entry and sensor for nothing).
+    fn suppressing_densities(&self, entry_w: &[f64]) -> Vec<Gaussian<N>> {
+        const SAME_DENSITY_M: f64 = 0.1;
+        let entries = &self.posterior.entries;
+        let mut order: Vec<usize> = (0..entries.len())
+            .filter(|&e| entry_w[e] >= self.cfg.birth.suppress_existence)
+            .collect();
+        order.sort_by(|&a, &b| entry_w[b].total_cmp(&entry_w[a]));
+        let mut kept: Vec<usize> = Vec::new();
+        for e in order {
+            let p = position_of(&entries[e].density.mean);
+            let near = kept.iter().any(|&k| {
+                entries[k].label == entries[e].label
+                    && (position_of(&entries[k].density.mean) - p).norm() < SAME_DENSITY_M
+            });
+            if !near {
+                kept.push(e);
+            }
+        }
+        kept.iter().map(|&e| entries[e].density.clone()).collect()
+    }
+
     /// The standard GLMB estimator (MAP cardinality, best hypothesis of that cardinality),
     /// followed by the reporting hysteresis.
     fn report(&mut self, labels: &HashMap<Label, LabelInfo>, audio: bool) -> Vec<TrackEstimate> {
@@ -263,14 +289,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
             // second label born from measurements a track already explains could only share
             // that track's existence (the data cannot tell the two apart) and take over its
             // identity later.
-            let confirmed: Vec<Gaussian<N>> = self
-                .posterior
-                .entries
-                .iter()
-                .zip(&entry_w)
-                .filter(|(_, w)| **w >= self.cfg.birth.suppress_existence)
-                .map(|(e, _)| e.density.clone())
-                .collect();
+            let confirmed = self.suppressing_densities(&entry_w);
             let ctx = BirthContext {
                 cfg: &self.cfg.birth,
                 ukf: &self.cfg.ukf,
