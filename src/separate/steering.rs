@@ -76,16 +76,18 @@ impl Steering {
         if self.gains.len() != other.gains.len() || self.delays_s.len() != other.delays_s.len() {
             return true;
         }
+        // Written as "not within" so that a NaN counts as a change and forces a rebuild.
+        let within = |x: f64, limit: f64| x <= limit;
         let phase = self
             .delays_s
             .iter()
             .zip(&other.delays_s)
-            .any(|(a, b)| !((a - b).abs() * omega_max <= tolerance_rad));
+            .any(|(a, b)| !within((a - b).abs() * omega_max, tolerance_rad));
         let gain = self
             .gains
             .iter()
             .zip(&other.gains)
-            .any(|(a, b)| !((a - b).abs() <= tolerance_rad * a.abs().max(b.abs())));
+            .any(|(a, b)| !within((a - b).abs(), tolerance_rad * a.abs().max(b.abs())));
         phase || gain
     }
 
