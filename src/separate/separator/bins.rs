@@ -1,0 +1,297 @@
+//! The per-bin work of a frame: fixed beamformers, adaptation control, the adaptive stage and
+//! the post-filter.
+
+use super::{POWER_SMOOTHING, Separator};
+use crate::dsp::Complex;
+use crate::label::Label;
+use crate::separate::config::{BeamformerKind, PostFilterTarget};
+use crate::separate::mvdr;
+use crate::separate::rls::{self, RlsStep};
+
+impl Separator {
+    /// The per-bin work: fixed beamformers, adaptation control, adaptive stage, post-filter.
+    pub(super) fn run_bins(&mut self, out: &mut [(Label, Vec<Complex>)]) {
+        let n = self.streams.len();
+        if n == 0 {
+            return;
+        }
+        for k in self.k_lo..self.k_hi {
+            self.fixed_outputs(k);
+            self.adaptation_weights(k);
+            for i in 0..n {
+                self.beamform(k, i);
+            }
+            self.post_filter(k, out);
+            if k + 1 < self.k_hi {
+                let w = &mut self.work;
+                for g in 0..self.groups.len() {
+                    if w.active[g] {
+                        for (a, z) in w.walk[g].iter_mut().zip(&w.step[g]) {
+                            *a *= z;
+                        }
+                    }
+                }
+            }
+        }
+        for (s, e) in self.streams.iter_mut().zip(&self.work.energy) {
+            s.power = POWER_SMOOTHING * s.power + (1.0 - POWER_SMOOTHING) * e;
+            s.steering_changed = false;
+            s.constraints_changed = false;
+        }
+    }
+
+    /// Null-steering outputs of every stream at bin `k` (delay-and-sum for that beamformer).
+    fn fixed_outputs(&mut self, k: usize) {
+        let ch = self.channels;
+        let loading = self.cfg.null_loading;
+        let das = self.cfg.beamformer == BeamformerKind::DelayAndSum;
+        let w = &mut self.work;
+        for (g, grp) in self.groups.iter().enumerate() {
+            if !w.active[g] {
+                continue;
+            }
+            let y = &w.y[k * ch..(k + 1) * ch];
+            for (o, &c) in w.yg[g].iter_mut().zip(&grp.channels) {
+                *o = y[c];
+            }
+            let m = grp.channels.len();
+            if das {
+                for (i, s) in self.streams.iter().enumerate() {
+                    if s.group == g {
+                        w.fixed[i] = delay_and_sum(&w.walk[g][i * m..(i + 1) * m], &w.yg[g]);
+                    }
+                }
+            } else if w.shared[g] {
+                let n = self.streams.len();
+                let ns = &mut w.ns_bins[g][k];
+                if w.rebuild[g] {
+                    ns.prepare(&w.walk[g], n, m, loading);
+                }
+                ns.outputs(&w.walk[g], m, &w.yg[g], &mut w.ns_out);
+                for (i, s) in self.streams.iter().enumerate() {
+                    if s.group == g {
+                        w.fixed[i] = w.ns_out[i];
+                    }
+                }
+            } else {
+                for (i, s) in self.streams.iter_mut().enumerate() {
+                    if s.group != g {
+                        continue;
+                    }
+                    let nc = s.constraints.len();
+                    w.dsub.resize(nc * m, Complex::new(0.0, 0.0));
+                    for (j, &c) in s.constraints.iter().enumerate() {
+                        w.dsub[j * m..(j + 1) * m].copy_from_slice(&w.walk[g][c * m..(c + 1) * m]);
+                    }
+                    let ns = &mut s.null_steering[k];
+                    if s.constraints_changed {
+                        ns.prepare(&w.dsub, nc, m, loading);
+                    }
+                    ns.outputs(&w.dsub, m, &w.yg[g], &mut w.ns_out);
+                    w.fixed[i] = w.ns_out[0];
+                }
+            }
+        }
+    }
+
+    /// Adaptation weight per stream at bin `k`: 1 adapts fully, 0 freezes.
+    fn adaptation_weights(&mut self, k: usize) {
+        let a = &self.cfg.adaptation;
+        let w = &mut self.work;
+        let mut total = 0.0;
+        for (s, f) in self.streams.iter_mut().zip(&w.fixed) {
+            let p = &mut s.fixed_power[k];
+            *p = a.power_smoothing * *p + (1.0 - a.power_smoothing) * f.norm_sqr();
+            total += *p;
+        }
+        for (s, b) in self.streams.iter().zip(w.beta.iter_mut()) {
+            let mut presence = s.presence;
+            if a.per_bin && total > 0.0 {
+                presence *= s.fixed_power[k] / total;
+            }
+            *b =
+                ((a.presence_high - presence) / (a.presence_high - a.presence_low)).clamp(0.0, 1.0);
+        }
+    }
+
+    /// The beamformer output of stream `i` at bin `k`, with its adaptive step.
+    fn beamform(&mut self, k: usize, i: usize) {
+        let kind = self.cfg.beamformer;
+        let s = &mut self.streams[i];
+        let g = s.group;
+        let m = self.groups[g].channels.len();
+        let w = &mut self.work;
+        let a = &w.walk[g][i * m..(i + 1) * m];
+        let y = &w.yg[g];
+        let d = w.fixed[i];
+        let power = self.psd[k];
+        let out = match kind {
+            BeamformerKind::DelayAndSum | BeamformerKind::NullSteering => d,
+            BeamformerKind::Gsc => {
+                let dims = s.rls_dims;
+                let l = dims.l;
+                let blocking = &mut s.blocking[k];
+                if s.steering_changed {
+                    blocking.set(a);
+                }
+                // The padding must be zero (another group may have left values there).
+                w.ur[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
+                w.ui[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
+                blocking.apply_split(y, &mut w.ur[..l], &mut w.ui[..l]);
+                let stride = dims.stride();
+                let st = &mut s.rls[k * stride..(k + 1) * stride];
+                let e = rls::output(st, dims, &w.ur, &w.ui, d);
+                if self.record {
+                    // Effective weights W - B V with the weights that made this output.
+                    rls::weights(st, dims, &mut w.u[..l]);
+                    s.blocking[k].combine(&w.u[..l], &mut w.w2[..m]);
+                }
+                let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
+                let step = RlsStep {
+                    forgetting: self.cfg.rls.forgetting,
+                    leakage: self.cfg.rls.leakage,
+                    max_norm2: self.cfg.rls.max_norm_ratio.powi(2) / an.max(1e-300),
+                };
+                let ok = rls::adapt(
+                    st,
+                    dims,
+                    &w.ur,
+                    &w.ui,
+                    e,
+                    w.beta[i],
+                    power,
+                    s.leak_index.wrapping_add(k),
+                    &step,
+                    &mut w.scratch,
+                );
+                if !ok {
+                    s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);
+                }
+                e
+            }
+            BeamformerKind::Mvdr => {
+                let st = &mut s.adaptive[k * s.stride..(k + 1) * s.stride];
+                mvdr::update(st, m, y, w.beta[i], self.cfg.mvdr.forgetting);
+                mvdr::weights(st, m, a, self.cfg.mvdr.loading, &mut w.mat, &mut w.w[..m]);
+                let mut e = Complex::new(0.0, 0.0);
+                for (wv, yv) in w.w[..m].iter().zip(y) {
+                    e += wv.conj() * yv;
+                }
+                e
+            }
+        };
+        let out = if out.is_finite() {
+            out
+        } else {
+            s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);
+            if d.is_finite() {
+                d
+            } else {
+                Complex::new(0.0, 0.0)
+            }
+        };
+        if k + 1 == self.k_hi {
+            s.leak_index = s.leak_index.wrapping_add(1);
+        }
+        w.bf[i] = out;
+        w.energy[i] += out.norm_sqr();
+        if self.record {
+            self.record_filter(k, i);
+        }
+    }
+
+    /// Stores stream `i`'s beamformer weights at bin `k` (before the post-filter gain).
+    fn record_filter(&mut self, k: usize, i: usize) {
+        let ch = self.channels;
+        let kind = self.cfg.beamformer;
+        let s = &mut self.streams[i];
+        let grp = &self.groups[s.group];
+        let m = grp.channels.len();
+        let w = &mut self.work;
+        let a = &w.walk[s.group][i * m..(i + 1) * m];
+        let weights = &mut w.w[..m];
+        match kind {
+            BeamformerKind::DelayAndSum => {
+                let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
+                for (o, a) in weights.iter_mut().zip(a) {
+                    *o = a / an.max(1e-300);
+                }
+            }
+            BeamformerKind::Mvdr => {}
+            BeamformerKind::NullSteering | BeamformerKind::Gsc => {
+                if w.shared[s.group] {
+                    w.ns_bins[s.group][k].weights(&w.walk[s.group], m, i, weights);
+                } else {
+                    for (j, &c) in s.constraints.iter().enumerate() {
+                        w.dsub[j * m..(j + 1) * m]
+                            .copy_from_slice(&w.walk[s.group][c * m..(c + 1) * m]);
+                    }
+                    s.null_steering[k].weights(&w.dsub, m, 0, weights);
+                }
+                if kind == BeamformerKind::Gsc {
+                    for (o, bv) in weights.iter_mut().zip(&w.w2[..m]) {
+                        *o -= bv;
+                    }
+                }
+            }
+        }
+        let f = &mut s.filters[k * ch..(k + 1) * ch];
+        for (&c, x) in grp.channels.iter().zip(weights.iter()) {
+            f[c] = *x;
+        }
+    }
+
+    /// Post-filter gains at bin `k`; writes every stream's output bin into `out`.
+    fn post_filter(&mut self, k: usize, out: &mut [(Label, Vec<Complex>)]) {
+        let w = &mut self.work;
+        for (p, s) in w.post.iter_mut().zip(&self.streams) {
+            *p = s.post[k];
+        }
+        let yref = w.y[k * self.channels + self.reference];
+        self.post.gains(
+            &w.bf,
+            &w.priors,
+            &mut w.post,
+            (yref, &mut self.ref_power[k]),
+            &mut w.gains,
+        );
+        let to_ref =
+            self.cfg.post_filter.apply_to == PostFilterTarget::ReferenceMic && self.post.enabled();
+        let ch = self.channels;
+        for (((s, p), (g, b)), (_, o)) in self
+            .streams
+            .iter_mut()
+            .zip(&w.post)
+            .zip(w.gains.iter().zip(&w.bf))
+            .zip(out.iter_mut())
+        {
+            s.post[k] = *p;
+            let scale = g * s.gain;
+            o[k] = if to_ref { yref * scale } else { b * scale };
+            if self.record {
+                let f = &mut s.filters[k * ch..(k + 1) * ch];
+                if to_ref {
+                    f.fill(Complex::new(0.0, 0.0));
+                    f[self.reference] = Complex::new(1.0, 0.0);
+                }
+                for x in f.iter_mut() {
+                    *x *= scale;
+                }
+            }
+        }
+    }
+}
+
+fn delay_and_sum(a: &[Complex], y: &[Complex]) -> Complex {
+    let mut num = Complex::new(0.0, 0.0);
+    let mut den = 0.0;
+    for (a, y) in a.iter().zip(y) {
+        num += a.conj() * y;
+        den += a.norm_sqr();
+    }
+    if den > 1e-300 {
+        num / den
+    } else {
+        Complex::new(0.0, 0.0)
+    }
+}

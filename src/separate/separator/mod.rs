@@ -1,0 +1,411 @@
+//! The separator: a bank of per-label beamformers keyed by label, run one STFT frame at a time.
+
+mod bank;
+mod bins;
+
+use super::Target;
+use super::config::{ConfigError, SeparatorConfig};
+use super::lifecycle::Timing;
+use super::null_steering::NullSteering;
+use super::postfilter::{PostFilter, PostState};
+use super::rls;
+use super::steering::Steering;
+use super::stream::Stream;
+use crate::dsp::{Complex, FrameGeometry, MultiSpectrum};
+use crate::geometry::{Layout, Vec3};
+use crate::label::Label;
+
+/// Smoothing per frame of the input power spectrum that scales the regularisation.
+const PSD_SMOOTHING: f64 = 0.9;
+/// Smoothing per frame of each stream's broadband power (ranks capped null constraints).
+const POWER_SMOOTHING: f64 = 0.8;
+/// In `nearest_array` mode a label moves to another array only when that one is nearer by this
+/// factor, so a label between two arrays does not flip back and forth.
+const SWITCH_RATIO: f64 = 0.8;
+
+/// Microphones one beamformer runs on.
+#[derive(Debug, Clone)]
+struct MicGroup {
+    /// Layout columns, in the order of the steering vectors.
+    channels: Vec<usize>,
+    /// Positions of those microphones.
+    mics: Vec<Vec3>,
+    /// Origin of far-field directions.
+    centroid: Vec3,
+}
+
+/// Per-frame scratch, kept between frames so `process` does not allocate.
+#[derive(Debug, Default)]
+struct Work {
+    /// Sanitised input, bin-major: `channels` values per bin.
+    y: Vec<Complex>,
+    /// Snapshot of each group's microphones at the current bin.
+    yg: Vec<Vec<Complex>>,
+    /// Per group: steering of every stream at the current bin, stream after stream.
+    walk: Vec<Vec<Complex>>,
+    /// Per group: per-bin phase step of every stream's steering.
+    step: Vec<Vec<Complex>>,
+    /// Whether any stream runs on the group this frame.
+    active: Vec<bool>,
+    /// Whether the group's streams share one constraint set (all labels as columns).
+    shared: Vec<bool>,
+    /// Per group and bin: the shared fixed beamformers, kept while no steering moves.
+    ns_bins: Vec<Vec<NullSteering>>,
+    /// Per group: rebuild `ns_bins` this frame.
+    rebuild: Vec<bool>,
+    /// Candidate steering, compared with the one in use.
+    candidate: Steering,
+    dsub: Vec<Complex>,
+    ns_out: Vec<Complex>,
+    fixed: Vec<Complex>,
+    bf: Vec<Complex>,
+    beta: Vec<f64>,
+    u: Vec<Complex>,
+    ur: Vec<f64>,
+    ui: Vec<f64>,
+    scratch: Vec<f64>,
+    mat: Vec<Complex>,
+    w: Vec<Complex>,
+    w2: Vec<Complex>,
+    post: Vec<PostState>,
+    /// Per stream: prior weight in the post-filter's competition for the bins.
+    priors: Vec<f64>,
+    gains: Vec<f64>,
+    energy: Vec<f64>,
+    present: Vec<bool>,
+}
+
+/// A bank of per-label beamformers with a time-frequency post-filter.
+///
+/// Each call to [`Separator::process`] takes one STFT frame of every layout channel and the
+/// current targets and returns, for every label that has a stream, an estimate of that source's
+/// image at the reference microphone `layout.reference_channel()` (its direct path through the
+/// distortionless beamformer, or the reference microphone itself under the post-filter's gain
+/// with `post_filter.apply_to = reference_mic`).
+pub struct Separator {
+    cfg: SeparatorConfig,
+    fs: f64,
+    c: f64,
+    channels: usize,
+    reference: usize,
+    reference_pos: Vec3,
+    groups: Vec<MicGroup>,
+    bins: usize,
+    k_lo: usize,
+    k_hi: usize,
+    domega: f64,
+    timing: Timing,
+    post: PostFilter,
+    psd: Vec<f64>,
+    psd_ready: bool,
+    /// Smoothed power of the reference microphone per bin (post-filter).
+    ref_power: Vec<f64>,
+    streams: Vec<Stream>,
+    /// Labels and groups of the bank at the last frame (a change rebuilds the fixed beamformers).
+    last_bank: Vec<(Label, usize)>,
+    record: bool,
+    work: Work,
+}
+
+impl Separator {
+    /// A separator for `layout` with configuration `cfg` (validated).
+    pub fn new(layout: &Layout, cfg: &SeparatorConfig) -> Result<Self, ConfigError> {
+        cfg.validate()?;
+        let mut s = Self {
+            cfg: cfg.clone(),
+            fs: 0.0,
+            c: 0.0,
+            channels: 0,
+            reference: 0,
+            reference_pos: Vec3::zeros(),
+            groups: Vec::new(),
+            bins: 0,
+            k_lo: 0,
+            k_hi: 0,
+            domega: 0.0,
+            timing: Timing {
+                fade_in: 0,
+                grace: 0,
+                fade_out: 1,
+            },
+            post: PostFilter::new(&cfg.post_filter, 1.0),
+            psd: Vec::new(),
+            psd_ready: false,
+            ref_power: Vec::new(),
+            streams: Vec::new(),
+            last_bank: Vec::new(),
+            record: false,
+            work: Work::default(),
+        };
+        s.apply_layout(layout)?;
+        s.apply_config();
+        Ok(s)
+    }
+
+    /// The STFT frame and hop the separator expects (the caller's STFT and inverse use it).
+    pub fn frame_geometry(&self) -> FrameGeometry {
+        self.cfg.frame_geometry()
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &SeparatorConfig {
+        &self.cfg
+    }
+
+    /// Labels that currently have a stream, in birth order.
+    pub fn labels(&self) -> Vec<Label> {
+        self.streams.iter().map(|s| s.label).collect()
+    }
+
+    /// Recalibration: new microphone or reference positions. The bank and its labels are kept; a
+    /// label's adaptive state survives when its microphone group keeps its size.
+    pub fn set_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
+        self.apply_layout(layout)?;
+        self.apply_config();
+        Ok(())
+    }
+
+    /// New settings. Labels are kept; per-bin state is reset when the framing, the beamformer or
+    /// the microphone selection changes (the caller must then rebuild its STFT and inverse from
+    /// [`Separator::frame_geometry`]).
+    pub fn set_config(&mut self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
+        cfg.validate()?;
+        let reset = cfg.beamformer != self.cfg.beamformer || cfg.mics != self.cfg.mics;
+        self.cfg = cfg.clone();
+        if reset {
+            for s in &mut self.streams {
+                s.needs_reset = true;
+            }
+        }
+        self.rebuild_groups();
+        self.apply_config();
+        Ok(())
+    }
+
+    /// Records each frame's effective linear filter per label (for evaluation: running
+    /// [`Separator::apply_last_filters`] on parts of the input splits the output into parts).
+    pub fn record_filters(&mut self, on: bool) {
+        self.record = on;
+    }
+
+    /// Applies the filters of the last processed frame to other spectra (e.g. one source's image
+    /// alone): the output each label would have given for that input, post-filter gain and fade
+    /// included. Requires [`Separator::record_filters`].
+    pub fn apply_last_filters(
+        &self,
+        spectra: &MultiSpectrum,
+        out: &mut Vec<(Label, Vec<Complex>)>,
+    ) {
+        let (bins, ch) = (self.bins, self.channels);
+        resize_outputs(out, self.streams.len(), bins);
+        for (s, (label, o)) in self.streams.iter().zip(out.iter_mut()) {
+            *label = s.label;
+            o.fill(Complex::new(0.0, 0.0));
+            if s.filters.len() != bins * ch {
+                continue;
+            }
+            for (k, ok) in o.iter_mut().enumerate().take(bins.min(spectra.bins())) {
+                let h = &s.filters[k * ch..(k + 1) * ch];
+                let mut acc = Complex::new(0.0, 0.0);
+                for (c, hc) in h.iter().enumerate().take(spectra.channels()) {
+                    acc += hc.conj() * sanitise(spectra.at(c, k));
+                }
+                *ok = acc;
+            }
+        }
+    }
+
+    /// Processes one STFT frame: `spectra` holds every layout channel (column order), `targets`
+    /// the labels to separate at this frame's time. Returns one spectrum (`bins` values) per label
+    /// with a stream, including labels within their grace period or fading out.
+    pub fn process(
+        &mut self,
+        spectra: &MultiSpectrum,
+        targets: &[Target],
+    ) -> Vec<(Label, Vec<Complex>)> {
+        let mut out = Vec::new();
+        self.process_into(spectra, targets, &mut out);
+        out
+    }
+
+    /// [`Separator::process`] writing into `out`, whose buffers are reused (no allocation once
+    /// the number of labels is stable).
+    pub fn process_into(
+        &mut self,
+        spectra: &MultiSpectrum,
+        targets: &[Target],
+        out: &mut Vec<(Label, Vec<Complex>)>,
+    ) {
+        self.load_input(spectra);
+        self.update_bank(targets);
+        self.prepare_streams();
+        resize_outputs(out, self.streams.len(), self.bins);
+        for (s, (label, o)) in self.streams.iter().zip(out.iter_mut()) {
+            *label = s.label;
+            o[..self.k_lo].fill(Complex::new(0.0, 0.0));
+            o[self.k_hi..].fill(Complex::new(0.0, 0.0));
+        }
+        self.run_bins(out);
+        let t = self.timing;
+        self.streams.retain(|s| !s.envelope.is_dead(&t));
+    }
+
+    fn apply_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
+        let channels = layout.channel_count();
+        let reference = layout
+            .reference_channel()
+            .ok_or_else(|| ConfigError::new("layout.arrays", "carry no audio channels"))?;
+        let mut pos = vec![Vec3::zeros(); channels];
+        for a in &layout.arrays {
+            for (m, &ch) in a.mics.iter().zip(&a.channels) {
+                if ch < channels {
+                    pos[ch] = *m;
+                }
+            }
+        }
+        self.fs = f64::from(layout.sample_rate);
+        self.c = layout.speed_of_sound;
+        self.channels = channels;
+        self.reference = reference;
+        self.reference_pos = pos[reference];
+        let mut groups = Vec::new();
+        let mut all: Vec<usize> = std::iter::once(reference)
+            .chain((0..channels).filter(|&c| c != reference))
+            .collect();
+        all.dedup();
+        groups.push(make_group(all, &pos));
+        for a in &layout.arrays {
+            if !a.channels.is_empty() {
+                groups.push(make_group(a.channels.clone(), &pos));
+            }
+        }
+        self.groups = groups;
+        self.rebuild_groups();
+        Ok(())
+    }
+
+    /// Which groups exist for the microphone selection: group 0 is all microphones, groups 1..
+    /// the single arrays.
+    fn rebuild_groups(&mut self) {
+        let n = self.groups.len();
+        self.work.walk.resize(n, Vec::new());
+        self.work.step.resize(n, Vec::new());
+        self.work.yg.resize(n, Vec::new());
+        for (g, grp) in self.groups.iter().enumerate() {
+            self.work.yg[g].resize(grp.channels.len(), Complex::new(0.0, 0.0));
+        }
+        self.work.active.resize(n, false);
+        self.work.shared.resize(n, true);
+        self.work.ns_bins.resize(n, Vec::new());
+        self.work.rebuild.resize(n, true);
+        // New microphone positions or settings: nothing cached holds.
+        self.last_bank.clear();
+        for s in &mut self.streams {
+            s.steering_changed = true;
+            s.constraints_changed = true;
+            s.steering
+                .iter_mut()
+                .for_each(|st| *st = Steering::default());
+        }
+        for s in &mut self.streams {
+            s.steering.resize(n, Default::default());
+        }
+    }
+
+    fn apply_config(&mut self) {
+        let geom = self.cfg.frame_geometry();
+        let bins = geom.bins();
+        if bins != self.bins {
+            self.psd = vec![0.0; bins];
+            self.ref_power = vec![0.0; bins];
+            self.psd_ready = false;
+            for s in &mut self.streams {
+                s.needs_reset = true;
+            }
+        }
+        self.bins = bins;
+        let nyquist = self.fs / 2.0;
+        let hz_per_bin = self.fs / geom.frame as f64;
+        let hi = self.cfg.max_frequency_hz.unwrap_or(nyquist).min(nyquist);
+        self.k_lo = ((self.cfg.min_frequency_hz / hz_per_bin).ceil() as usize).min(bins);
+        self.k_hi = ((hi / hz_per_bin).floor() as usize + 1).clamp(self.k_lo, bins);
+        self.domega = 2.0 * std::f64::consts::PI * hz_per_bin;
+        let frames_per_s = self.fs / geom.hop as f64;
+        self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
+        self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
+        let maxm = self
+            .groups
+            .iter()
+            .map(|g| g.channels.len())
+            .max()
+            .unwrap_or(1);
+        let w = &mut self.work;
+        w.y.resize(bins * self.channels, Complex::new(0.0, 0.0));
+        w.u.resize(maxm, Complex::new(0.0, 0.0));
+        let lp = rls::Dims::new(maxm).lp;
+        w.ur.resize(lp, 0.0);
+        w.ui.resize(lp, 0.0);
+        w.scratch.resize(2 * lp, 0.0);
+        w.mat.resize(maxm * maxm, Complex::new(0.0, 0.0));
+        w.w.resize(maxm, Complex::new(0.0, 0.0));
+        w.w2.resize(maxm, Complex::new(0.0, 0.0));
+        let kind = self.cfg.beamformer;
+        let groups = self.groups.len();
+        for s in &mut self.streams {
+            let m = self.groups[s.group].channels.len();
+            s.fit(kind, bins, m, groups);
+        }
+    }
+
+    /// Copies the frame bin-major, non-finite values as zero, and updates the input PSD.
+    fn load_input(&mut self, spectra: &MultiSpectrum) {
+        let (bins, ch) = (self.bins, self.channels);
+        let y = &mut self.work.y;
+        y.fill(Complex::new(0.0, 0.0));
+        let nb = bins.min(spectra.bins());
+        for c in 0..ch.min(spectra.channels()) {
+            for (k, v) in spectra.channel(c)[..nb].iter().enumerate() {
+                y[k * ch + c] = sanitise(*v);
+            }
+        }
+        let a = if self.psd_ready { PSD_SMOOTHING } else { 0.0 };
+        for (k, p) in self.psd.iter_mut().enumerate() {
+            let e: f64 = y[k * ch..(k + 1) * ch].iter().map(|v| v.norm_sqr()).sum();
+            let e = e / ch.max(1) as f64;
+            *p = if e.is_finite() {
+                a * *p + (1.0 - a) * e
+            } else {
+                *p
+            };
+        }
+        self.psd_ready = true;
+    }
+}
+
+fn make_group(channels: Vec<usize>, pos: &[Vec3]) -> MicGroup {
+    let mics: Vec<Vec3> = channels.iter().map(|&c| pos[c]).collect();
+    let centroid = mics.iter().sum::<Vec3>() / mics.len().max(1) as f64;
+    MicGroup {
+        channels,
+        mics,
+        centroid,
+    }
+}
+
+fn sanitise(v: Complex) -> Complex {
+    if v.is_finite() {
+        v
+    } else {
+        Complex::new(0.0, 0.0)
+    }
+}
+
+fn resize_outputs(out: &mut Vec<(Label, Vec<Complex>)>, n: usize, bins: usize) {
+    out.truncate(n);
+    while out.len() < n {
+        out.push((Label::new(0, 0), Vec::new()));
+    }
+    for (_, o) in out.iter_mut() {
+        o.resize(bins, Complex::new(0.0, 0.0));
+    }
+}
