@@ -63,6 +63,13 @@ fn bench(c: &mut Criterion) {
     for (name, json, speaking) in [
         ("gsc_adapting", r#"{}"#, 0.0),
         ("gsc_frozen", r#"{}"#, 1.0),
+        // Fixed beamformers and blocking matrices rebuilt every hop (the cost before the
+        // steering tolerance; a moving talker costs this only on the hops where it moved enough).
+        (
+            "gsc_rebuild_every_hop",
+            r#"{"steering_tolerance_rad": 0.0}"#,
+            0.0,
+        ),
         (
             "gsc_mask_bf",
             r#"{"post_filter": {"kind": "mask", "apply_to": "beamformer_output"}}"#,

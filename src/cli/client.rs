@@ -1,6 +1,6 @@
-//! `avsep client stream`: streams a scene folder to a running server over WebSocket, as a
-//! meeting-room client would, and writes what comes back as an output folder, so a live run is
-//! scored by `avsep eval` exactly like an offline one.
+//! `avsep client stream`: streams a scene folder to a running server over WebSocket (or Zenoh,
+//! as an edge device would), as a meeting-room client would, and writes what comes back as an
+//! output folder, so a live run is scored by `avsep eval` exactly like an offline one.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
@@ -10,13 +10,18 @@ use clap::{Args, Subcommand};
 
 use super::CliError;
 use super::process::load_config;
+use super::serve::parse_mode;
 use crate::pipeline::PipelineConfig;
-use crate::protocol::rest::SessionCreated;
+use crate::protocol::rest::{SessionCreated, SessionState};
 use crate::protocol::{AudioSelection, OutputSelection, SampleEncoding};
 use crate::scene::format::TracksLine;
 use crate::scene::output::files;
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, write_json};
-use crate::server::client::{Received, StreamOptions, create_body, http, scene_feed, stream_feed};
+use crate::server::client::{
+    Received, StreamOptions, ZenohClient, ZenohClientConfig, create_body, feed_channel, http,
+    scene_feed, stream_feed,
+};
+use crate::server::zenoh_transport::ZenohMode;
 
 /// Arguments of `avsep client`.
 #[derive(Debug, Args)]
@@ -39,9 +44,25 @@ pub enum ClientCommand {
 pub struct StreamArgs {
     /// Scene folder to stream.
     pub scene: PathBuf,
-    /// Server address.
+    /// Server address (WebSocket streaming).
     #[arg(long, default_value = "http://127.0.0.1:8080")]
     pub url: String,
+    /// Stream over Zenoh instead of WebSocket: create the session through the
+    /// `avsep/sessions/create` queryable, publish under `avsep/<id>/in/...` and subscribe to
+    /// `avsep/<id>/out/**` (no HTTP; `--url` is not used).
+    #[arg(long)]
+    pub zenoh: bool,
+    /// Zenoh endpoints to connect to with `--zenoh` (a server or a router), comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "tcp/127.0.0.1:7447",
+        requires = "zenoh"
+    )]
+    pub zenoh_connect: Vec<String>,
+    /// Zenoh role with `--zenoh`: peer or client (through the router in `--zenoh-connect`).
+    #[arg(long, value_parser = parse_mode, default_value = "peer", requires = "zenoh")]
+    pub zenoh_mode: ZenohMode,
     /// Output folder to write.
     #[arg(long)]
     pub out: PathBuf,
@@ -92,7 +113,11 @@ fn stream(args: StreamArgs) -> Result<(), CliError> {
         .build()
         .map_err(CliError::runtime)?;
     let started = Instant::now();
-    let (created, got) = runtime.block_on(create_and_stream(&args, &addr, &scene, settings))?;
+    let (created, got) = if args.zenoh {
+        runtime.block_on(zenoh_create_and_stream(&args, &scene, settings))?
+    } else {
+        runtime.block_on(create_and_stream(&args, &addr, &scene, settings))?
+    };
     let wall_s = started.elapsed().as_secs_f64();
     write_output(&args, &scene, &created, &got, wall_s)?;
     println!(
@@ -138,7 +163,56 @@ async fn create_and_stream(
     }
     let created: SessionCreated = r.json().map_err(CliError::runtime)?;
     let feed = scene_feed(scene, args.block.max(1), SampleEncoding::F32);
-    let opts = StreamOptions {
+    let url = format!("ws://{addr}{}", created.stream);
+    let got = stream_feed(&url, &created.token, &feed, &stream_options(args))
+        .await
+        .map_err(CliError::runtime)?;
+    Ok((created, got))
+}
+
+/// The same over Zenoh: the session is created through the queryable, the feed published under
+/// its input keys, and its outputs collected until its `closed` message.
+async fn zenoh_create_and_stream(
+    args: &StreamArgs,
+    scene: &Scene,
+    settings: Option<PipelineConfig>,
+) -> Result<(SessionCreated, Received), CliError> {
+    let client = ZenohClient::connect(&ZenohClientConfig {
+        mode: args.zenoh_mode,
+        connect: args.zenoh_connect.clone(),
+        ..Default::default()
+    })
+    .await
+    .map_err(CliError::runtime)?;
+    let body = create_body(&scene.layout, settings);
+    let created = client
+        .create(&body, args.admin_key.as_deref())
+        .await
+        .map_err(|e| CliError::runtime(format!("creating a session over Zenoh: {e}")))?;
+    let mut stream = client
+        .open(&created.session, &created.token)
+        .await
+        .map_err(CliError::runtime)?;
+    let feed = feed_channel(scene_feed(scene, args.block.max(1), SampleEncoding::F32));
+    let got = stream
+        .stream(feed, &stream_options(args), |_| {})
+        .await
+        .map_err(CliError::runtime)?;
+    drop(stream);
+    client.close().await;
+    if let Some(c) = &got.closed
+        && c.state == SessionState::Failed
+    {
+        return Err(CliError::runtime(format!(
+            "session {} failed: {}",
+            created.id, c.reason
+        )));
+    }
+    Ok((created, got))
+}
+
+fn stream_options(args: &StreamArgs) -> StreamOptions {
+    StreamOptions {
         realtime: args.realtime,
         outputs: OutputSelection {
             measurements: true,
@@ -150,12 +224,7 @@ async fn create_and_stream(
         },
         timeout: Duration::from_secs_f64(args.timeout_s.max(1.0)),
         ..Default::default()
-    };
-    let url = format!("ws://{addr}{}", created.stream);
-    let got = stream_feed(&url, &created.token, &feed, &opts)
-        .await
-        .map_err(CliError::runtime)?;
-    Ok((created, got))
+    }
 }
 
 /// Writes the output folder of scene-format.md from what the stream delivered.
@@ -196,7 +265,7 @@ fn write_output(
     let duration_s = scene.duration();
     let summary = serde_json::json!({
         "scene": scene.dir.display().to_string(),
-        "server": args.url,
+        "server": if args.zenoh { format!("zenoh {}", args.zenoh_connect.join(",")) } else { args.url.clone() },
         "session": created.id,
         "realtime": args.realtime,
         "duration_s": duration_s,

@@ -48,6 +48,11 @@ pub struct LoadgenArgs {
     /// Seed of the simulated scene.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Start every stream at the same instant, so that all sessions' steps fall due together
+    /// (the worst case). By default the starts are spread evenly over one tracker step, as
+    /// clients that join a server independently are.
+    #[arg(long)]
+    pub lockstep: bool,
 }
 
 /// Figures of one run with `sessions` concurrent sessions.
@@ -57,6 +62,11 @@ pub struct LoadReport {
     pub sessions: usize,
     /// Largest per-session p99 step latency (ms).
     pub p99_ms_max: f64,
+    /// Largest per-session p99 of the pipeline's processing time per step (ms): the compute
+    /// alone, without the waiting for a core that `p99_ms_max` includes.
+    pub processing_p99_ms_max: f64,
+    /// Cores the server process kept busy while the streams ran (its CPU time over wall time).
+    pub server_cores: f64,
     /// Median over sessions of the p99 step latency (ms).
     pub p99_ms_median: f64,
     /// Largest step latency seen (ms).
@@ -124,16 +134,27 @@ pub fn run(args: LoadgenArgs) -> Result<(), CliError> {
         reports.push(r);
     }
     println!(
-        "{:>8} {:>10} {:>10} {:>8} {:>6} {:>8} {:>8} {:>6}",
-        "sessions", "p99max_ms", "p99med_ms", "rtf_med", "refused", "dropped", "MB/sess", "holds"
+        "{:>8} {:>10} {:>10} {:>9} {:>8} {:>6} {:>6} {:>8} {:>8} {:>6}",
+        "sessions",
+        "p99max_ms",
+        "p99med_ms",
+        "proc99_ms",
+        "rtf_med",
+        "cores",
+        "refused",
+        "dropped",
+        "MB/sess",
+        "holds"
     );
     for r in &reports {
         println!(
-            "{:>8} {:>10.2} {:>10.2} {:>8.3} {:>6} {:>8} {:>8.2} {:>6}",
+            "{:>8} {:>10.2} {:>10.2} {:>9.2} {:>8.3} {:>6.2} {:>6} {:>8} {:>8.2} {:>6}",
             r.sessions,
             r.p99_ms_max,
             r.p99_ms_median,
+            r.processing_p99_ms_max,
             r.rtf_median,
+            r.server_cores,
             r.refused,
             r.output_dropped,
             r.mb_per_session,
@@ -169,6 +190,7 @@ async fn run_once(
     let before = http(addr, "GET", "/metrics", None, None)
         .await
         .map_err(CliError::runtime)?;
+    let cpu = |text: &str| prom_value(text, "avsep_process_cpu_seconds_total").unwrap_or(0.0);
     let rss0 = rss(&before.text());
     let body = serde_json::to_vec(&create_body(&scene.layout, None)).map_err(CliError::runtime)?;
     let mut sessions: Vec<SessionCreated> = Vec::new();
@@ -200,11 +222,22 @@ async fn run_once(
         ..Default::default()
     };
     let started = Instant::now();
+    let cpu0 = http(addr, "GET", "/metrics", None, None)
+        .await
+        .map(|m| cpu(&m.text()))
+        .unwrap_or(0.0);
+    let step = Duration::from_secs_f64(crate::pipeline::PipelineConfig::default().step_s);
     let mut tasks = Vec::new();
-    for s in &sessions {
+    for (i, s) in sessions.iter().enumerate() {
         let url = format!("ws://{addr}{}", s.stream);
         let (token, feed, opts) = (s.token.clone(), feed.clone(), opts.clone());
+        let delay = if args.lockstep || !args.realtime {
+            Duration::ZERO
+        } else {
+            step.mul_f64(i as f64 / n.max(1) as f64)
+        };
         tasks.push(tokio::spawn(async move {
+            tokio::time::sleep(delay).await;
             stream_feed(&url, &token, &feed, &opts).await
         }));
     }
@@ -219,6 +252,10 @@ async fn run_once(
         all_done = tasks.iter().all(|t| t.is_finished());
     }
     let wall_s = started.elapsed().as_secs_f64();
+    let cpu1 = http(addr, "GET", "/metrics", None, None)
+        .await
+        .map(|m| cpu(&m.text()))
+        .unwrap_or(cpu0);
     let steps_expected = (args.seconds / 0.128).floor() as usize;
     let mut complete = true;
     for t in tasks {
@@ -229,6 +266,7 @@ async fn run_once(
     }
     let (mut p99s, mut rtfs, mut max_ms, mut refused, mut dropped) =
         (Vec::new(), Vec::new(), 0.0f64, 0, 0);
+    let mut processing_p99 = 0.0f64;
     for s in &sessions {
         let path = format!("/v1/sessions/{}/metrics", s.id);
         let r = http(addr, "GET", &path, Some(&s.token), None)
@@ -236,6 +274,7 @@ async fn run_once(
             .map_err(CliError::runtime)?;
         let m: SessionMetrics = r.json().map_err(CliError::runtime)?;
         p99s.push(m.step_latency_ms.p99);
+        processing_p99 = processing_p99.max(m.step_processing_ms.p99);
         rtfs.push(m.real_time_factor);
         max_ms = max_ms.max(m.step_latency_ms.max);
         refused += m.refused.values().sum::<u64>();
@@ -248,6 +287,8 @@ async fn run_once(
     Ok(LoadReport {
         sessions: n,
         p99_ms_max: p99_max,
+        processing_p99_ms_max: processing_p99,
+        server_cores: (cpu1 - cpu0) / wall_s.max(1e-9),
         p99_ms_median: median(p99s),
         max_ms,
         rtf_median: median(rtfs),

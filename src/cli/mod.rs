@@ -94,6 +94,12 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
 /// Entry point of the binary.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    if matches!(
+        cli.command,
+        Command::Simulate(_) | Command::Process(_) | Command::Eval(_) | Command::Config(_)
+    ) {
+        die_quietly_on_closed_pipe();
+    }
     match &cli.command {
         // A server logs what it does; JSON lines on request.
         Command::Serve(a) => init_logging("info", a.log_json),
@@ -105,6 +111,18 @@ pub fn main() -> ExitCode {
             eprintln!("error: {}", e.message);
             ExitCode::from(e.code)
         }
+    }
+}
+
+/// Rust ignores SIGPIPE, so `avsep config --defaults | head` would panic in `println!` once
+/// `head` exits. Commands that only print and write files get the Unix default back (end
+/// quietly); the server and the network clients keep ignoring it, since for them a closed
+/// socket is an error to handle, not a reason to die.
+fn die_quietly_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: called before any thread is started; SIG_DFL is a valid disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 

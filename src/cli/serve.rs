@@ -104,7 +104,7 @@ impl ServeArgs {
     }
 }
 
-fn parse_mode(s: &str) -> Result<ZenohMode, String> {
+pub(super) fn parse_mode(s: &str) -> Result<ZenohMode, String> {
     serde_json::from_value(serde_json::Value::String(s.to_string()))
         .map_err(|_| format!("{s:?} is not a Zenoh mode (peer, client, router)"))
 }

@@ -176,6 +176,12 @@ pub struct PostFilterConfig {
     pub untracked_margin: f64,
     /// Rise of the tracked noise floor per second (dB/s) when the power stays above it.
     pub noise_rise_db_per_s: f64,
+    /// Prior weight of a label the tracker believes silent, relative to one that talks: each
+    /// label's claim on a bin is weighted by `presence_floor + (1 - presence_floor) x presence`
+    /// (presence = speaking x activity) and by its fade envelope. 1 (default) ignores the
+    /// speaking probabilities: with oracle talk spurts 0.1 gains 0.3 dB SI-SDR on uca8, but the
+    /// tracker's probabilities cost 0.2 dB (uca8) and 0.5 dB (paper-linear6), seeds 1-3.
+    pub presence_floor: f64,
 }
 
 impl Default for PostFilterConfig {
@@ -191,6 +197,7 @@ impl Default for PostFilterConfig {
             untracked_weight: 0.0,
             untracked_margin: 1.0,
             noise_rise_db_per_s: 5.0,
+            presence_floor: 1.0,
         }
     }
 }
@@ -237,6 +244,13 @@ pub struct SeparatorConfig {
     /// Diagonal loading of the null-steering fixed beamformer relative to the mean diagonal of
     /// D^H D; keeps close-by labels and low frequencies from blowing up the white-noise gain.
     pub null_loading: f64,
+    /// A label's steering (and with it the fixed beamformers and blocking matrices) is rebuilt
+    /// only when its position moved enough to change some microphone's phase by more than this
+    /// at the top processed frequency, or its relative gain by as much (rad; 0.05 bounds the
+    /// steering error at -26 dB at 8 kHz, -44 dB at 1 kHz, far below the reverberant leakage).
+    /// 0 rebuilds on every change. 0.05 leaves uca8 (oracle and tracker), paper-linear6 and
+    /// single within 0.02 dB of 0 (seeds 1-3); 0.1 costs 0.1 dB on single.
+    pub steering_tolerance_rad: f64,
     /// Adaptive canceller of the GSC.
     pub rls: RlsConfig,
     /// MVDR beamformer.
@@ -259,6 +273,7 @@ impl Default for SeparatorConfig {
             min_frequency_hz: 0.0,
             max_frequency_hz: None,
             null_loading: 1e-2,
+            steering_tolerance_rad: 0.05,
             rls: RlsConfig::default(),
             mvdr: MvdrConfig::default(),
             adaptation: AdaptationConfig::default(),
@@ -304,6 +319,12 @@ impl SeparatorConfig {
             }
         }
         in_range("null_loading", self.null_loading, 1e-9, 1e3)?;
+        in_range(
+            "steering_tolerance_rad",
+            self.steering_tolerance_rad,
+            0.0,
+            1.0,
+        )?;
         let r = &self.rls;
         in_range("rls.forgetting", r.forgetting, 0.5, 1.0 - 1e-9)?;
         in_range("rls.init_regularisation", r.init_regularisation, 1e-9, 1e6)?;
@@ -344,6 +365,7 @@ impl SeparatorConfig {
             0.01,
             100.0,
         )?;
+        in_range("post_filter.presence_floor", p.presence_floor, 1e-3, 1.0)?;
         let l = &self.lifecycle;
         in_range("lifecycle.fade_in_s", l.fade_in_s, 0.0, 10.0)?;
         in_range("lifecycle.grace_s", l.grace_s, 0.0, 60.0)?;

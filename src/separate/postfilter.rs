@@ -48,6 +48,7 @@ pub struct PostFilter {
     untracked: f64,
     margin: f64,
     rise: f64,
+    presence_floor: f64,
 }
 
 impl PostFilter {
@@ -63,7 +64,22 @@ impl PostFilter {
             untracked: cfg.untracked_weight,
             margin: cfg.untracked_margin,
             rise: 10f64.powf(cfg.noise_rise_db_per_s / 10.0 / frames_per_s),
+            presence_floor: cfg.presence_floor,
         }
+    }
+
+    /// A label's prior weight in the competition for the bins: its envelope gain (a label fading
+    /// in or out has a partial claim) times `presence_floor + (1 - presence_floor) presence`,
+    /// where presence is the tracker's speaking probability times the voice activity. A label the
+    /// tracker believes silent thus takes a bin only where its beamformer output clearly
+    /// dominates, so a silent or spurious label near a talker does not split that talker's energy.
+    pub fn prior(&self, envelope_gain: f64, presence: f64) -> f64 {
+        let p = if presence.is_finite() {
+            presence.clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        envelope_gain.clamp(0.0, 1.0) * (self.presence_floor + (1.0 - self.presence_floor) * p)
     }
 
     /// Whether any gain is applied at all.
@@ -72,10 +88,13 @@ impl PostFilter {
     }
 
     /// Updates every label's state at one bin from its beamformer output and writes its gain.
-    /// `reference` is the reference microphone's value and its smoothed power (state).
+    /// `priors` weighs each label's claim on the bin (its prior probability of talking, see
+    /// [`PostFilter::prior`]); `reference` is the reference microphone's value and its smoothed
+    /// power (state).
     pub fn gains(
         &self,
         outputs: &[Complex],
+        priors: &[f64],
         state: &mut [PostState],
         reference: (Complex, &mut f64),
         gains: &mut [f64],
@@ -97,8 +116,9 @@ impl PostFilter {
             PostFilterKind::None => gains[..n].fill(1.0),
             PostFilterKind::Mask => {
                 for i in 0..n {
-                    let pi = state[i].power;
-                    let wins = (0..n).all(|j| j == i || pi >= self.threshold * state[j].power)
+                    let pi = priors[i] * state[i].power;
+                    let wins = (0..n)
+                        .all(|j| j == i || pi >= self.threshold * priors[j] * state[j].power)
                         && pi >= self.threshold * residual;
                     gains[i] = if wins { 1.0 } else { self.floor };
                 }
@@ -115,13 +135,13 @@ impl PostFilter {
                     }
                 };
                 let mut total = pow(residual);
-                for (g, s) in gains.iter_mut().zip(state.iter()) {
+                for ((g, s), w) in gains.iter_mut().zip(state.iter()).zip(priors) {
                     let xi = if self.use_noise {
                         (s.power - NOISE_BIAS * s.noise).max(0.0)
                     } else {
                         s.power
                     };
-                    *g = pow(xi);
+                    *g = w * pow(xi);
                     total += *g;
                 }
                 for (g, s) in gains.iter_mut().zip(state.iter()) {
@@ -171,11 +191,18 @@ mod tests {
             Complex::new(0.0, 2.0),
             Complex::new(0.5, 0.0),
         ];
-        f.gains(&out, &mut st, (Complex::new(0.0, 0.0), &mut 0.0), &mut g);
+        f.gains(
+            &out,
+            &[1.0; 3],
+            &mut st,
+            (Complex::new(0.0, 0.0), &mut 0.0),
+            &mut g,
+        );
         assert_eq!(g, vec![0.1, 1.0, 0.1]);
         let mut one = vec![PostState::default()];
         f.gains(
             &out[..1],
+            &[1.0],
             &mut one,
             (Complex::new(0.0, 0.0), &mut 0.0),
             &mut g[..1],
@@ -191,6 +218,7 @@ mod tests {
         let mut g = vec![0.0; 2];
         f.gains(
             &[Complex::new(3.0, 0.0), Complex::new(1.0, 0.0)],
+            &[1.0; 2],
             &mut st,
             (Complex::new(0.0, 0.0), &mut 0.0),
             &mut g,
@@ -198,6 +226,7 @@ mod tests {
         assert!((g[0] - 0.9).abs() < 1e-12 && (g[1] - 0.1).abs() < 1e-12);
         f.gains(
             &[Complex::new(10.0, 0.0), Complex::new(0.1, 0.0)],
+            &[1.0; 2],
             &mut st,
             (Complex::new(0.0, 0.0), &mut 0.0),
             &mut g,
@@ -206,11 +235,44 @@ mod tests {
         // Silence gives the floor, not NaN.
         f.gains(
             &[Complex::new(0.0, 0.0); 2],
+            &[1.0; 2],
             &mut st,
             (Complex::new(0.0, 0.0), &mut 0.0),
             &mut g,
         );
         assert!(g.iter().all(|x| x.is_finite()));
+    }
+
+    #[test]
+    fn priors_weigh_each_labels_claim() {
+        let mut f = pf(PostFilterKind::Wiener, 0.0);
+        f.use_noise = false;
+        f.presence_floor = 0.25;
+        // A label fading in at half gain and silent has a quarter of the claim of a full one
+        // that talks; a label not yet audible (gain 0) has none.
+        assert!((f.prior(0.5, 0.0) - 0.125).abs() < 1e-12);
+        assert_eq!(f.prior(1.0, 1.0), 1.0);
+        assert_eq!(f.prior(0.0, 1.0), 0.0);
+        assert_eq!(f.prior(1.0, f64::NAN), 1.0);
+        let out = [Complex::new(1.0, 0.0), Complex::new(1.0, 0.0)];
+        let mut st = vec![PostState::default(); 2];
+        let mut g = vec![0.0; 2];
+        let r = (Complex::new(0.0, 0.0), &mut 0.0);
+        f.gains(
+            &out,
+            &[f.prior(1.0, 1.0), f.prior(1.0, 0.0)],
+            &mut st,
+            r,
+            &mut g,
+        );
+        // Equal outputs split by the priors: 1 : 0.25.
+        assert!(
+            (g[0] - 0.8).abs() < 1e-12 && (g[1] - 0.2).abs() < 1e-12,
+            "{g:?}"
+        );
+        let r = (Complex::new(0.0, 0.0), &mut 0.0);
+        f.gains(&out, &[1.0, 0.0], &mut st, r, &mut g);
+        assert_eq!(g, vec![1.0, 0.1]);
     }
 
     #[test]
@@ -226,6 +288,7 @@ mod tests {
             let burst = if n % 50 == 49 { 30.0 } else { 1.0 };
             f.gains(
                 &[Complex::from_polar(burst, ph)],
+                &[1.0],
                 &mut st,
                 (Complex::new(0.0, 0.0), &mut 0.0),
                 &mut g,

@@ -6,6 +6,7 @@ use super::lifecycle::Timing;
 use super::null_steering::NullSteering;
 use super::postfilter::{PostFilter, PostState};
 use super::rls::{self, RlsStep};
+use super::steering::Steering;
 use super::stream::Stream;
 use super::{Target, mvdr};
 use crate::dsp::{Complex, FrameGeometry, MultiSpectrum};
@@ -46,8 +47,13 @@ struct Work {
     active: Vec<bool>,
     /// Whether the group's streams share one constraint set (all labels as columns).
     shared: Vec<bool>,
+    /// Per group and bin: the shared fixed beamformers, kept while no steering moves.
+    ns_bins: Vec<Vec<NullSteering>>,
+    /// Per group: rebuild `ns_bins` this frame.
+    rebuild: Vec<bool>,
+    /// Candidate steering, compared with the one in use.
+    candidate: Steering,
     dsub: Vec<Complex>,
-    ns: NullSteering,
     ns_out: Vec<Complex>,
     fixed: Vec<Complex>,
     bf: Vec<Complex>,
@@ -56,11 +62,12 @@ struct Work {
     ur: Vec<f64>,
     ui: Vec<f64>,
     scratch: Vec<f64>,
-    blocking: Blocking,
     mat: Vec<Complex>,
     w: Vec<Complex>,
     w2: Vec<Complex>,
     post: Vec<PostState>,
+    /// Per stream: prior weight in the post-filter's competition for the bins.
+    priors: Vec<f64>,
     gains: Vec<f64>,
     energy: Vec<f64>,
     present: Vec<bool>,
@@ -92,6 +99,8 @@ pub struct Separator {
     /// Smoothed power of the reference microphone per bin (post-filter).
     ref_power: Vec<f64>,
     streams: Vec<Stream>,
+    /// Labels and groups of the bank at the last frame (a change rebuilds the fixed beamformers).
+    last_bank: Vec<(Label, usize)>,
     record: bool,
     work: Work,
 }
@@ -122,6 +131,7 @@ impl Separator {
             psd_ready: false,
             ref_power: Vec::new(),
             streams: Vec::new(),
+            last_bank: Vec::new(),
             record: false,
             work: Work::default(),
         };
@@ -284,6 +294,17 @@ impl Separator {
         }
         self.work.active.resize(n, false);
         self.work.shared.resize(n, true);
+        self.work.ns_bins.resize(n, Vec::new());
+        self.work.rebuild.resize(n, true);
+        // New microphone positions or settings: nothing cached holds.
+        self.last_bank.clear();
+        for s in &mut self.streams {
+            s.steering_changed = true;
+            s.constraints_changed = true;
+            s.steering
+                .iter_mut()
+                .for_each(|st| *st = Steering::default());
+        }
         for s in &mut self.streams {
             s.steering.resize(n, Default::default());
         }
@@ -326,7 +347,6 @@ impl Separator {
         w.mat.resize(maxm * maxm, Complex::new(0.0, 0.0));
         w.w.resize(maxm, Complex::new(0.0, 0.0));
         w.w2.resize(maxm, Complex::new(0.0, 0.0));
-        w.blocking = Blocking::new(maxm);
         let kind = self.cfg.beamformer;
         let groups = self.groups.len();
         for s in &mut self.streams {
@@ -418,11 +438,35 @@ impl Separator {
             s.fit(kind, bins, m, ngroups);
             if s.needs_reset {
                 s.reset_adaptive(kind, m, self.cfg.rls.init_regularisation, &self.psd);
+                s.steering_changed = true;
+                s.steering
+                    .iter_mut()
+                    .for_each(|st| *st = Steering::default());
+            }
+            if s.blocking.len() != bins || s.blocking.first().is_some_and(|b| b.mics() != m) {
+                s.blocking = vec![Blocking::new(m); bins];
+                s.steering_changed = true;
             }
         }
         let n = self.streams.len();
+        // The fixed beamformers and blocking matrices depend only on the steering: they are
+        // rebuilt when a label's steering moves beyond the tolerance or the bank changes, and
+        // the steering in use stays put in between (a stale steering errs by at most the
+        // tolerance in phase at the top bin).
+        let omega_max = self.domega * self.k_hi.saturating_sub(1) as f64;
+        let tol = self.cfg.steering_tolerance_rad;
+        let bank_changed = self.last_bank.len() != n
+            || self
+                .last_bank
+                .iter()
+                .zip(&self.streams)
+                .any(|(&(l, g), s)| l != s.label || g != s.group);
+        self.last_bank.clear();
+        self.last_bank
+            .extend(self.streams.iter().map(|s| (s.label, s.group)));
         let w = &mut self.work;
         w.active.fill(false);
+        w.rebuild.fill(false);
         for s in &self.streams {
             w.active[s.group] = true;
         }
@@ -434,14 +478,27 @@ impl Separator {
             w.walk[g].resize(n * m, Complex::new(0.0, 0.0));
             w.step[g].resize(n * m, Complex::new(0.0, 0.0));
             w.shared[g] = n <= m;
+            if w.ns_bins[g].len() != bins {
+                w.ns_bins[g] = vec![NullSteering::default(); bins];
+                w.rebuild[g] = true;
+            }
+            w.rebuild[g] |= bank_changed;
             for (i, s) in self.streams.iter_mut().enumerate() {
-                let st = &mut s.steering[g];
+                let st = &mut w.candidate;
                 if s.direction_only {
                     let dir = s.position - grp.centroid;
                     st.set_far_field(&grp.mics, &self.reference_pos, &dir, self.c);
                 } else {
                     st.set_near_field(&grp.mics, &self.reference_pos, &s.position, self.c);
                 }
+                if s.steering[g].differs(st, omega_max, tol) {
+                    std::mem::swap(&mut s.steering[g], st);
+                    w.rebuild[g] = true;
+                    if s.group == g {
+                        s.steering_changed = true;
+                    }
+                }
+                let st = &s.steering[g];
                 let omega0 = self.domega * k_lo as f64;
                 st.start_walk(
                     omega0,
@@ -453,9 +510,11 @@ impl Separator {
         }
         // Capped null constraints: the loudest other labels get the M - 1 nulls.
         for i in 0..n {
-            let m = self.groups[self.streams[i].group].channels.len();
+            let g = self.streams[i].group;
+            let m = self.groups[g].channels.len();
             if n <= m {
                 self.streams[i].constraints.clear();
+                self.streams[i].constraints_changed = true;
                 continue;
             }
             let mut order: Vec<usize> = (0..n).filter(|&j| j != i).collect();
@@ -467,7 +526,15 @@ impl Separator {
             });
             order.truncate(m - 1);
             order.insert(0, i);
-            self.streams[i].constraints = order;
+            // Any steering moved on the group: its columns may be among this stream's.
+            let moved = w.rebuild[g];
+            let s = &mut self.streams[i];
+            s.constraints_changed |= bank_changed || moved || s.constraints != order;
+            s.constraints = order;
+            if s.null_steering.len() != bins {
+                s.null_steering = vec![NullSteering::default(); bins];
+                s.constraints_changed = true;
+            }
         }
         w.fixed.resize(n, Complex::new(0.0, 0.0));
         w.bf.resize(n, Complex::new(0.0, 0.0));
@@ -475,6 +542,10 @@ impl Separator {
         w.beta.resize(n, 0.0);
         w.post.resize(n, PostState::default());
         w.gains.resize(n, 1.0);
+        w.priors.clear();
+        for st in &self.streams {
+            w.priors.push(self.post.prior(st.gain, st.presence));
+        }
         w.energy.clear();
         w.energy.resize(n, 0.0);
         let rec = self.record;
@@ -515,6 +586,8 @@ impl Separator {
         }
         for (s, e) in self.streams.iter_mut().zip(&self.work.energy) {
             s.power = POWER_SMOOTHING * s.power + (1.0 - POWER_SMOOTHING) * e;
+            s.steering_changed = false;
+            s.constraints_changed = false;
         }
     }
 
@@ -541,15 +614,18 @@ impl Separator {
                 }
             } else if w.shared[g] {
                 let n = self.streams.len();
-                w.ns.prepare(&w.walk[g], n, m, loading);
-                w.ns.outputs(&w.walk[g], m, &w.yg[g], &mut w.ns_out);
+                let ns = &mut w.ns_bins[g][k];
+                if w.rebuild[g] {
+                    ns.prepare(&w.walk[g], n, m, loading);
+                }
+                ns.outputs(&w.walk[g], m, &w.yg[g], &mut w.ns_out);
                 for (i, s) in self.streams.iter().enumerate() {
                     if s.group == g {
                         w.fixed[i] = w.ns_out[i];
                     }
                 }
             } else {
-                for (i, s) in self.streams.iter().enumerate() {
+                for (i, s) in self.streams.iter_mut().enumerate() {
                     if s.group != g {
                         continue;
                     }
@@ -558,8 +634,11 @@ impl Separator {
                     for (j, &c) in s.constraints.iter().enumerate() {
                         w.dsub[j * m..(j + 1) * m].copy_from_slice(&w.walk[g][c * m..(c + 1) * m]);
                     }
-                    w.ns.prepare(&w.dsub, nc, m, loading);
-                    w.ns.outputs(&w.dsub, m, &w.yg[g], &mut w.ns_out);
+                    let ns = &mut s.null_steering[k];
+                    if s.constraints_changed {
+                        ns.prepare(&w.dsub, nc, m, loading);
+                    }
+                    ns.outputs(&w.dsub, m, &w.yg[g], &mut w.ns_out);
                     w.fixed[i] = w.ns_out[0];
                 }
             }
@@ -602,18 +681,21 @@ impl Separator {
             BeamformerKind::Gsc => {
                 let dims = s.rls_dims;
                 let l = dims.l;
-                w.blocking.set(a);
+                let blocking = &mut s.blocking[k];
+                if s.steering_changed {
+                    blocking.set(a);
+                }
                 // The padding must be zero (another group may have left values there).
                 w.ur[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
                 w.ui[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
-                w.blocking.apply_split(y, &mut w.ur[..l], &mut w.ui[..l]);
+                blocking.apply_split(y, &mut w.ur[..l], &mut w.ui[..l]);
                 let stride = dims.stride();
                 let st = &mut s.rls[k * stride..(k + 1) * stride];
                 let e = rls::output(st, dims, &w.ur, &w.ui, d);
                 if self.record {
                     // Effective weights W - B V with the weights that made this output.
                     rls::weights(st, dims, &mut w.u[..l]);
-                    w.blocking.combine(&w.u[..l], &mut w.w2[..m]);
+                    s.blocking[k].combine(&w.u[..l], &mut w.w2[..m]);
                 }
                 let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
                 let step = RlsStep {
@@ -672,7 +754,6 @@ impl Separator {
     /// Stores stream `i`'s beamformer weights at bin `k` (before the post-filter gain).
     fn record_filter(&mut self, k: usize, i: usize) {
         let ch = self.channels;
-        let loading = self.cfg.null_loading;
         let kind = self.cfg.beamformer;
         let s = &mut self.streams[i];
         let grp = &self.groups[s.group];
@@ -690,17 +771,13 @@ impl Separator {
             BeamformerKind::Mvdr => {}
             BeamformerKind::NullSteering | BeamformerKind::Gsc => {
                 if w.shared[s.group] {
-                    let n = w.walk[s.group].len() / m;
-                    w.ns.prepare(&w.walk[s.group], n, m, loading);
-                    w.ns.weights(&w.walk[s.group], m, i, weights);
+                    w.ns_bins[s.group][k].weights(&w.walk[s.group], m, i, weights);
                 } else {
-                    let nc = s.constraints.len();
                     for (j, &c) in s.constraints.iter().enumerate() {
                         w.dsub[j * m..(j + 1) * m]
                             .copy_from_slice(&w.walk[s.group][c * m..(c + 1) * m]);
                     }
-                    w.ns.prepare(&w.dsub, nc, m, loading);
-                    w.ns.weights(&w.dsub, m, 0, weights);
+                    s.null_steering[k].weights(&w.dsub, m, 0, weights);
                 }
                 if kind == BeamformerKind::Gsc {
                     for (o, bv) in weights.iter_mut().zip(&w.w2[..m]) {
@@ -724,6 +801,7 @@ impl Separator {
         let yref = w.y[k * self.channels + self.reference];
         self.post.gains(
             &w.bf,
+            &w.priors,
             &mut w.post,
             (yref, &mut self.ref_power[k]),
             &mut w.gains,

@@ -69,6 +69,26 @@ impl Steering {
         }
     }
 
+    /// Whether `other` departs from this steering by more than `tolerance_rad` of phase at angular
+    /// frequency `omega_max` on any microphone, or by more than `tolerance_rad` in relative gain:
+    /// the error a beamformer built for one makes when the source is at the other.
+    pub fn differs(&self, other: &Steering, omega_max: f64, tolerance_rad: f64) -> bool {
+        if self.gains.len() != other.gains.len() || self.delays_s.len() != other.delays_s.len() {
+            return true;
+        }
+        let phase = self
+            .delays_s
+            .iter()
+            .zip(&other.delays_s)
+            .any(|(a, b)| !((a - b).abs() * omega_max <= tolerance_rad));
+        let gain = self
+            .gains
+            .iter()
+            .zip(&other.gains)
+            .any(|(a, b)| !((a - b).abs() <= tolerance_rad * a.abs().max(b.abs())));
+        phase || gain
+    }
+
     /// The steering vector at angular frequency `omega` (rad/s).
     pub fn at(&self, omega: f64, out: &mut [Complex]) {
         for ((o, g), d) in out.iter_mut().zip(&self.gains).zip(&self.delays_s) {
@@ -219,6 +239,27 @@ mod tests {
     #[test]
     fn far_field_rtf_matches_a_distant_plane_wave() {
         check_against_direct_path(&uca(6, 0.08), Vec3::new(-40.0, 60.0, 10.0), true);
+    }
+
+    #[test]
+    fn differs_measures_phase_at_the_top_frequency_and_relative_gain() {
+        let mics = uca(8, 0.05);
+        let c = 343.0;
+        let a = Steering::near_field(&mics, &mics[0], &Vec3::new(3.5, 2.0, 1.5), c);
+        assert!(!a.differs(&a, 2.0 * std::f64::consts::PI * 8000.0, 0.0));
+        // A 1 mm step of a source 2.2 m away moves the relative delays by nanoseconds: within a
+        // 0.01 rad tolerance at 8 kHz, but not within zero tolerance.
+        let b = Steering::near_field(&mics, &mics[0], &Vec3::new(3.5, 2.001, 1.5), c);
+        let omega = 2.0 * std::f64::consts::PI * 8000.0;
+        assert!(!a.differs(&b, omega, 0.01));
+        assert!(a.differs(&b, omega, 0.0));
+        // A 10 degree turn is far outside it.
+        let d = Steering::near_field(&mics, &mics[0], &Vec3::new(3.3, 2.6, 1.5), c);
+        assert!(a.differs(&d, omega, 0.01));
+        let mut nan = a.clone();
+        nan.delays_s[3] = f64::NAN;
+        assert!(a.differs(&nan, omega, 0.01));
+        assert!(a.differs(&Steering::default(), omega, 0.01));
     }
 
     #[test]

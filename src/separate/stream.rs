@@ -1,7 +1,9 @@
 //! One label's stream in the bank: where it steers, its lifecycle and its per-bin adaptive state.
 
+use super::blocking::Blocking;
 use super::config::BeamformerKind;
 use super::lifecycle::Envelope;
+use super::null_steering::NullSteering;
 use super::postfilter::PostState;
 use super::rls;
 use super::steering::Steering;
@@ -45,6 +47,15 @@ pub(super) struct Stream {
     pub constraints: Vec<usize>,
     /// Effective filter of the last frame, bins x channels (only when recording).
     pub filters: Vec<Complex>,
+    /// Blocking matrix per bin, built for `steering` (GSC).
+    pub blocking: Vec<Blocking>,
+    /// Fixed beamformer per bin when the nulls are capped (this stream's own constraint set).
+    pub null_steering: Vec<NullSteering>,
+    /// The steering moved beyond the tolerance (or the stream is new): rebuild its blocking
+    /// matrices this frame.
+    pub steering_changed: bool,
+    /// Rebuild this stream's capped fixed beamformers this frame.
+    pub constraints_changed: bool,
 }
 
 impl Stream {
@@ -70,6 +81,10 @@ impl Stream {
             leak_index: 0,
             constraints: Vec::new(),
             filters: Vec::new(),
+            blocking: Vec::new(),
+            null_steering: Vec::new(),
+            steering_changed: true,
+            constraints_changed: true,
         }
     }
 

@@ -56,6 +56,7 @@ pub struct ServerMetrics {
     queue_depth: IntGauge,
     live_tracks: IntGauge,
     resident_bytes: IntGauge,
+    cpu_seconds: Gauge,
     real_time_factor: Gauge,
 }
 
@@ -146,6 +147,10 @@ impl ServerMetrics {
                 "avsep_process_resident_memory_bytes",
                 "Resident memory of the server process",
             )?,
+            cpu_seconds: Gauge::new(
+                "avsep_process_cpu_seconds_total",
+                "CPU time (user and system) the server process has used since it started",
+            )?,
             real_time_factor: Gauge::new(
                 "avsep_real_time_factor",
                 "Processing time over audio time, all sessions since start",
@@ -168,6 +173,7 @@ impl ServerMetrics {
         m.registry.register(Box::new(m.queue_depth.clone()))?;
         m.registry.register(Box::new(m.live_tracks.clone()))?;
         m.registry.register(Box::new(m.resident_bytes.clone()))?;
+        m.registry.register(Box::new(m.cpu_seconds.clone()))?;
         m.registry.register(Box::new(m.real_time_factor.clone()))?;
         Ok(m)
     }
@@ -194,6 +200,7 @@ impl ServerMetrics {
         self.live_tracks.set(snap.live_tracks);
         self.resident_bytes
             .set(resident_memory_bytes().unwrap_or(0) as i64);
+        self.cpu_seconds.set(process_cpu_seconds().unwrap_or(0.0));
         let audio = self.audio_seconds.get();
         self.real_time_factor.set(if audio > 0.0 {
             self.processing_seconds.get() / audio
@@ -217,6 +224,23 @@ pub fn resident_memory_bytes() -> Option<u64> {
     let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+/// CPU time (user + system) of this process (`/proc/self/stat`), when the system tells.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The command name (field 2) may hold spaces; the fields after its closing parenthesis
+    // start at field 3, so utime and stime (fields 14 and 15) are the 12th and 13th there.
+    let rest = &stat[stat.rfind(')')? + 1..];
+    let mut fields = rest.split_whitespace().skip(11);
+    let utime: f64 = fields.next()?.parse().ok()?;
+    let stime: f64 = fields.next()?.parse().ok()?;
+    #[cfg(unix)]
+    // SAFETY: sysconf has no preconditions; it returns -1 for an unknown name.
+    let ticks = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
+    #[cfg(not(unix))]
+    let ticks = 100;
+    (ticks > 0).then(|| (utime + stime) / ticks as f64)
 }
 
 /// A bounded window of recent values (ms) with percentiles.
@@ -415,6 +439,19 @@ mod tests {
     }
 
     #[test]
+    #[cfg(target_os = "linux")]
+    fn process_cpu_time_counts_work_done() {
+        let before = process_cpu_seconds().expect("linux has /proc/self/stat");
+        let t = std::time::Instant::now();
+        let mut x = 0u64;
+        while t.elapsed() < Duration::from_millis(60) {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+        }
+        let after = process_cpu_seconds().expect("linux has /proc/self/stat");
+        assert!(after >= before + 0.02, "{before} -> {after}");
+    }
+
+    #[test]
     fn session_counters_feed_the_exposition() {
         let server = std::sync::Arc::new(ServerMetrics::new().unwrap());
         let c = SessionCounters::new(server.clone());
@@ -432,6 +469,7 @@ mod tests {
         );
         assert!(text.contains("avsep_frames_in_total{kind=\"audio\"} 1"));
         assert!(text.contains("avsep_step_latency_seconds_bucket"));
+        assert!(text.contains("avsep_process_cpu_seconds_total"));
         assert!(text.contains("avsep_sessions{state=\"running\"} 0"));
     }
 }

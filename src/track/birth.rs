@@ -12,6 +12,7 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 use super::config::{BirthConfig, UkfConfig};
 use super::filter::{prepare, update};
 use super::gaussian::Gaussian;
+use super::modes::Modes;
 use super::motion::{position_of, state_of};
 use super::sensor::{Observation, Sensor, ray_interval};
 use crate::geometry::{Aabb, Camera, Pixel, Ray, Vec3, direction_from_angles};
@@ -46,11 +47,19 @@ pub(crate) fn fixed_births(cfg: &BirthConfig) -> Vec<BirthTerm<6>> {
 }
 
 /// One sensor's measurements of the step with the posterior probability that each was assigned
-/// to a track (r_U).
+/// to a track (r_U), and the scan's voice activity.
 pub(crate) struct BirthScan<'a> {
     pub sensor: usize,
     pub z: &'a [Vector3<f64>],
     pub assoc: &'a [f64],
+    pub activity: Option<f64>,
+}
+
+/// A measurement-driven birth: the term and its detectability modes (see `modes`).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Birth<const N: usize> {
+    pub term: BirthTerm<N>,
+    pub modes: Vec<f64>,
 }
 
 /// What the measurement-driven birth needs to know of the tracker.
@@ -59,6 +68,7 @@ pub(crate) struct BirthContext<'a, const N: usize> {
     pub ukf: &'a UkfConfig,
     pub region: Option<&'a Aabb>,
     pub sensors: &'a [Sensor<N>],
+    pub modes: &'a Modes,
 }
 
 /// Kinds of birth in decreasing order of trust.
@@ -74,15 +84,17 @@ struct Candidate<const N: usize> {
     density: Gaussian<N>,
     weight: f64,
     rank: Rank,
+    /// The scans whose measurements placed the birth.
+    seeds: Vec<usize>,
 }
 
-/// Births for the next step from this step's measurements. `confirmed` are the posteriors of
-/// the tracks the estimator reports: measurements inside their gate seed nothing.
+/// Births for the next step from this step's measurements. `confirmed` are the track densities
+/// likely enough to suppress births: measurements inside their gate seed nothing.
 pub(crate) fn births_from_measurements<const N: usize>(
     ctx: &BirthContext<N>,
     scans: &[BirthScan],
     confirmed: &[Gaussian<N>],
-) -> Vec<BirthTerm<N>> {
+) -> Vec<Birth<N>> {
     let (eligible, total) = eligibility(ctx, scans, confirmed);
     if total.is_nan() || total <= 0.0 || ctx.cfg.max_per_step == 0 {
         return Vec::new();
@@ -115,12 +127,77 @@ pub(crate) fn births_from_measurements<const N: usize>(
                     density,
                     weight,
                     rank,
+                    seeds: vec![si],
                 });
             }
         }
     }
     select(ctx.cfg, cands, total)
+        .into_iter()
+        .map(|(term, seeds)| condition(ctx, scans, term, &seeds))
+        .collect()
 }
+
+/// Conditions a birth on the scans of its step that did not place it: each of those sensors
+/// either missed the new object or saw it in one of the measurements the tracks leave free.
+/// The existence is multiplied by that likelihood ratio and the modes are updated with it, so a
+/// voice heard where the camera sees no face (a reverberant image of a talker, mostly) starts
+/// with the camera's miss against it, and a face seen while the array hears nothing starts as
+/// silent.
+fn condition<const N: usize>(
+    ctx: &BirthContext<N>,
+    scans: &[BirthScan],
+    mut term: BirthTerm<N>,
+    seeds: &[usize],
+) -> Birth<N> {
+    let mut modes = ctx.modes.initial();
+    let mut log_ratio = 0.0;
+    for (si, scan) in scans.iter().enumerate() {
+        if seeds.contains(&si) {
+            continue;
+        }
+        let sensor = &ctx.sensors[scan.sensor];
+        let Some(p) = prepare(sensor, &term.density, ctx.ukf) else {
+            continue;
+        };
+        let pd = sensor.p_detect_of(&term.density.mean, &p, scan.activity);
+        if pd <= 0.0 {
+            continue;
+        }
+        // sum over the free measurements of g(z) / kappa(z)
+        let mut seen = 0.0;
+        for (z, a) in scan.z.iter().zip(scan.assoc) {
+            let d2 = p.mahalanobis(&p.innovation(sensor, z));
+            if d2 <= sensor.gate {
+                seen +=
+                    (1.0 - a.clamp(0.0, 1.0)) * (p.log_likelihood(d2) - sensor.log_clutter).exp();
+            }
+        }
+        let ratio = |pd: f64| (1.0 - pd) + pd * seen;
+        let l = match sensor.mode {
+            Some(slot) => {
+                let on = modes[slot];
+                let (l_on, l_off) = (ratio(pd), ratio(sensor.off_p_detect.min(pd)));
+                let l = on * l_on + (1.0 - on) * l_off;
+                if l > 0.0 {
+                    modes[slot] = on * l_on / l;
+                }
+                l
+            }
+            None => ratio(pd),
+        };
+        if l > 0.0 && l.is_finite() {
+            log_ratio += l.ln();
+        }
+    }
+    let (r, l) = (term.existence, log_ratio.exp());
+    term.existence = (r * l / (1.0 - r + r * l)).clamp(0.0, 1.0);
+    Birth { term, modes }
+}
+
+/// A track whose detection probability is below this fraction of the sensor's (mostly out of
+/// a camera's view) does not suppress births from that sensor's measurements.
+const CAN_DETECT: f64 = 0.01;
 
 /// Which measurements may seed a birth, and the Reuter normaliser sum(1 - r_U).
 fn eligibility<const N: usize>(
@@ -132,9 +209,15 @@ fn eligibility<const N: usize>(
     let mut eligible = Vec::with_capacity(scans.len());
     for scan in scans {
         let sensor = &ctx.sensors[scan.sensor];
+        // Only tracks this sensor can detect explain its measurements (a track out of a
+        // camera's view does not, whatever its gate says).
         let preps: Vec<_> = confirmed
             .iter()
-            .filter_map(|g| prepare(sensor, g, ctx.ukf))
+            .filter_map(|g| prepare(sensor, g, ctx.ukf).map(|p| (g, p)))
+            .filter(|(g, p)| {
+                sensor.p_detect_of(&g.mean, p, scan.activity) > CAN_DETECT * sensor.p_detect
+            })
+            .map(|(_, p)| p)
             .collect();
         let flags = scan
             .z
@@ -153,32 +236,36 @@ fn eligibility<const N: usize>(
     (eligible, total)
 }
 
-/// Sorts, removes births that duplicate a better one, caps and assigns r_B.
+/// Sorts, removes births that duplicate a better one, caps and assigns r_B; with the scans that
+/// seeded each birth.
 fn select<const N: usize>(
     cfg: &BirthConfig,
     mut cands: Vec<Candidate<N>>,
     total: f64,
-) -> Vec<BirthTerm<N>> {
+) -> Vec<(BirthTerm<N>, Vec<usize>)> {
     cands.sort_by(|a, b| a.rank.cmp(&b.rank).then(b.weight.total_cmp(&a.weight)));
     // chi-square 99% quantiles for 1, 2 and 3 position axes.
     const DUPLICATE_GATE: [f64; 3] = [6.635, 9.210, 11.345];
     let gate = DUPLICATE_GATE[(N / 2).clamp(1, 3) - 1];
-    let mut out: Vec<BirthTerm<N>> = Vec::new();
+    let mut out: Vec<(BirthTerm<N>, Vec<usize>)> = Vec::new();
     for c in cands {
         if out.len() >= cfg.max_per_step {
             break;
         }
-        let duplicate = out.iter().any(|b| {
+        let duplicate = out.iter().any(|(b, _)| {
             let d = position_of(&c.density.mean) - position_of(&b.density.mean);
             let s = position_block(&c.density.cov) + position_block(&b.density.cov);
             s.try_inverse().is_some_and(|si| d.dot(&(si * d)) < gate)
         });
         let existence = (c.weight / total * cfg.expected_births).min(cfg.max_existence);
         if !duplicate && existence > 1e-9 {
-            out.push(BirthTerm {
-                density: c.density,
-                existence,
-            });
+            out.push((
+                BirthTerm {
+                    density: c.density,
+                    existence,
+                },
+                c.seeds,
+            ));
         }
     }
     out
@@ -279,18 +366,21 @@ fn camera_births<const N: usize>(
             let across = lateral_std(camera, &p, px_std, t);
             let pos = elongated(&ray.direction, along, across);
             let mut density = make_density::<N>(&p, &pos, ctx.cfg);
+            let mut seeds = vec![si];
             if let Some((sa, ja, _)) = partner {
                 let a = &scans[sa];
                 if let Some((g, _)) = update(&ctx.sensors[a.sensor], &density, &a.z[ja], ctx.ukf) {
                     density = g;
                 }
                 free[sa][ja] = false;
+                seeds.push(sa);
             }
             free[si][j] = false;
             cands.push(Candidate {
                 density,
                 weight: 1.0 - scan.assoc[j].clamp(0.0, 1.0),
                 rank,
+                seeds,
             });
         }
     }
@@ -494,7 +584,7 @@ mod tests {
         Camera::from_krt("cam", 1920.0, 1080.0, k, r, -(r * c), None).unwrap()
     }
 
-    fn sensors(cfg: &TrackerConfig) -> Vec<Sensor<6>> {
+    fn sensors(cfg: &TrackerConfig) -> (Vec<Sensor<6>>, Modes) {
         let models = [
             SensorModel::CameraPoint {
                 camera: Box::new(camera()),
@@ -516,17 +606,19 @@ mod tests {
                 filter: FilterKind::Ekf,
             },
         ];
-        models
+        let mut sensors: Vec<Sensor<6>> = models
             .iter()
             .enumerate()
             .map(|(i, m)| Sensor::compile(m, i, cfg).unwrap())
-            .collect()
+            .collect();
+        let modes = Modes::assign(&mut sensors, &cfg.voice, &cfg.face);
+        (sensors, modes)
     }
 
     #[test]
     fn camera_ray_and_audio_azimuth_meet_at_the_source() {
         let cfg = TrackerConfig::default();
-        let sensors = sensors(&cfg);
+        let (sensors, modes) = sensors(&cfg);
         let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
         let source = Vec3::new(2.6, 3.0, 1.6);
         let x = state_of::<6>(&source, &Vec3::zeros());
@@ -537,6 +629,7 @@ mod tests {
             ukf: &cfg.ukf,
             region: Some(&region),
             sensors: &sensors,
+            modes: &modes,
         };
         let (zc, za) = ([px], [az]);
         let scans = [
@@ -544,14 +637,19 @@ mod tests {
                 sensor: 0,
                 z: &zc,
                 assoc: &[0.0],
+                activity: None,
             },
             BirthScan {
                 sensor: 1,
                 z: &za,
                 assoc: &[0.0],
+                activity: Some(1.0),
             },
         ];
-        let births = births_from_measurements(&ctx, &scans, &[]);
+        let births: Vec<_> = births_from_measurements(&ctx, &scans, &[])
+            .into_iter()
+            .map(|b| b.term)
+            .collect();
         assert_eq!(births.len(), 1, "one fused birth, not one per sensor");
         let p = position_of(&births[0].density.mean);
         assert!((p - source).norm() < 0.05, "{p:?}");
@@ -574,11 +672,13 @@ mod tests {
                 sensor: 0,
                 z: &zc,
                 assoc: &[0.95],
+                activity: None,
             },
             BirthScan {
                 sensor: 1,
                 z: &za,
                 assoc: &[0.95],
+                activity: Some(1.0),
             },
         ];
         assert!(births_from_measurements(&ctx, &explained, &[]).is_empty());
@@ -587,25 +687,75 @@ mod tests {
     #[test]
     fn a_lone_azimuth_gives_a_broad_birth_on_its_bearing() {
         let cfg = TrackerConfig::default();
-        let sensors = sensors(&cfg);
+        let (sensors, modes) = sensors(&cfg);
         let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
         let ctx = BirthContext {
             cfg: &cfg.birth,
             ukf: &cfg.ukf,
             region: Some(&region),
             sensors: &sensors,
+            modes: &modes,
         };
         let za = [Vector3::new(0.3, 0.0, 0.0)];
         let scans = [BirthScan {
             sensor: 1,
             z: &za,
             assoc: &[0.0],
+            activity: Some(1.0),
         }];
         let b = births_from_measurements(&ctx, &scans, &[]);
         assert_eq!(b.len(), 1);
-        let p = position_of(&b[0].density.mean);
+        let p = position_of(&b[0].term.density.mean);
         let d = p - Vec3::new(0.0, 2.0, p.z);
         assert!((d.y.atan2(d.x) - 0.3).abs() < 1e-9);
         assert!(region.contains(&p));
+    }
+
+    #[test]
+    fn a_voice_where_the_camera_sees_no_face_starts_with_the_camera_miss_against_it() {
+        let cfg = TrackerConfig::default();
+        let (sensors, modes) = sensors(&cfg);
+        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let ctx = BirthContext {
+            cfg: &cfg.birth,
+            ukf: &cfg.ukf,
+            region: Some(&region),
+            sensors: &sensors,
+            modes: &modes,
+        };
+        // An azimuth towards a point the camera sees well.
+        let target = Vec3::new(2.6, 3.0, 1.6);
+        let za = [sensors[1]
+            .measure(&state_of::<6>(&target, &Vec3::zeros()))
+            .unwrap()];
+        let audio = BirthScan {
+            sensor: 1,
+            z: &za,
+            assoc: &[0.0],
+            activity: Some(1.0),
+        };
+        let alone = births_from_measurements(&ctx, &[audio], &[]);
+        let audio = BirthScan {
+            sensor: 1,
+            z: &za,
+            assoc: &[0.0],
+            activity: Some(1.0),
+        };
+        let empty = BirthScan {
+            sensor: 0,
+            z: &[],
+            assoc: &[],
+            activity: None,
+        };
+        let unseen = births_from_measurements(&ctx, &[empty, audio], &[]);
+        assert_eq!((alone.len(), unseen.len()), (1, 1));
+        let (r0, r1) = (alone[0].term.existence, unseen[0].term.existence);
+        // Most of the birth's bearing lies in view: the miss costs most of the existence.
+        assert!(r1 < 0.5 * r0, "{r1} vs {r0}");
+        let face = sensors[0].mode.unwrap();
+        assert!(unseen[0].modes[face] < alone[0].modes[face]);
+        // The voice seeded the birth, so its mode is left at the prior.
+        let voice = sensors[1].mode.unwrap();
+        assert_eq!(unseen[0].modes[voice], alone[0].modes[voice]);
     }
 }

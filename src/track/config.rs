@@ -87,6 +87,9 @@ pub struct TrackerConfig {
     pub estimator: EstimatorConfig,
     /// Per-track talking/silent mode that scales the audio detection probability.
     pub voice: VoiceConfig,
+    /// Per-track, per-camera face mode (towards the camera or turned away) behind the camera
+    /// detection probability.
+    pub face: FaceConfig,
     /// Exponential smoothing weight of the new `speaking` value, in (0, 1]; 1 = no smoothing.
     pub speaking_smoothing: f64,
     /// Keep track means inside the region (grown by 0.5 m) when a region is known; the
@@ -111,6 +114,7 @@ impl Default for TrackerConfig {
             birth: BirthConfig::default(),
             estimator: EstimatorConfig::default(),
             voice: VoiceConfig::default(),
+            face: FaceConfig::default(),
             speaking_smoothing: 0.5,
             clamp_to_region: true,
             gmphd: GmphdConfig::default(),
@@ -124,11 +128,21 @@ impl Default for TrackerConfig {
 pub struct MotionConfig {
     /// `langevin` (default, the paper's model) or `constant_velocity`.
     pub model: MotionKind,
-    /// Langevin: velocity decay rate beta (1/s; paper: 10).
+    /// Langevin: velocity decay rate beta (1/s; paper: 10). 2/s keeps a walker's velocity for
+    /// about half a second, enough to carry two tracks through a crossing more often than the
+    /// paper's 0.1 s (see `sigma_m_per_s` for the measurements).
     pub beta_per_s: f64,
     /// Langevin: steady-state RMS velocity nu (m/s; paper: 1).
     pub nu_m_per_s: f64,
-    /// Langevin: per-axis velocity noise sigma (x, y, z; paper: [1.2, 1.2, 0.2]).
+    /// Langevin: per-axis velocity noise sigma (x, y, z; paper: [1.2, 1.2, 0.2], for people
+    /// walking about). Over times beyond 1 / beta the position spreads by 2 nu^2 sigma^2 / beta
+    /// m^2/s: the paper's values let an unobserved track spread by 0.54 m in a second, wide
+    /// enough for a silent talker whose face is turned away to be pulled onto a reverberant
+    /// image of another talker 30 degrees off, and to let the unobservable range of a
+    /// direction-only track drift. With beta = 2/s, [0.27, 0.27, 0.05] spreads by 0.27 m in a
+    /// second and still follows walkers at 0.5-0.7 m/s; it measured better than the paper's
+    /// values on `paper-linear6`, `uca8` (2 and 3 talkers) and `two-arrays`, seeds 1-10
+    /// (OSPA(2), MOTA, label counts and switches, audio-visual and audio-only).
     pub sigma_m_per_s: [f64; 3],
     /// Constant velocity: per-axis white-acceleration standard deviation (m/s^2).
     pub accel_std_m_per_s2: [f64; 3],
@@ -138,9 +152,9 @@ impl Default for MotionConfig {
     fn default() -> Self {
         Self {
             model: MotionKind::Langevin,
-            beta_per_s: 10.0,
+            beta_per_s: 2.0,
             nu_m_per_s: 1.0,
-            sigma_m_per_s: [1.2, 1.2, 0.2],
+            sigma_m_per_s: [0.27, 0.27, 0.05],
             accel_std_m_per_s2: [2.0, 2.0, 0.5],
         }
     }
@@ -298,6 +312,47 @@ impl Default for VoiceConfig {
     }
 }
 
+/// Per-track, per-camera face mode: each track carries, for each camera, a two-state Markov mode,
+/// face towards the camera or turned away.
+///
+/// A face detector misses a person who looks away (at another talker, at a screen, out of the
+/// window) for seconds at a time while the person stays where they are. With a single camera
+/// P_D every such frame is an independent miss and a silent person's track ends within three
+/// frames (factor 0.1 each at P_D 0.9). A face towards the camera is detected with
+/// `camera.p_detect`, one turned away with `away_p_detect`; the mode is predicted with the rates
+/// below and updated by every frame of that camera (detection or miss), so the first misses cost
+/// about as much as before and the following ones little, while a camera that sends no frame
+/// leaves it alone.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct FaceConfig {
+    /// Model the mode; when false a camera detects every track in view with `camera.p_detect`.
+    pub enabled: bool,
+    /// Mean time a face stays towards a camera (s).
+    pub mean_towards_s: f64,
+    /// Mean time a face stays turned away (s): glances of 1-3 s at another talker are typical
+    /// of meetings.
+    pub mean_away_s: f64,
+    /// Detection probability of a face turned away (a profile the detector still finds now
+    /// and then); must stay below `camera.p_detect`.
+    pub away_p_detect: f64,
+    /// Probability that a new track faces the camera: most people a camera sees have their face
+    /// towards it, so a track the camera has not seen starts with a real miss penalty.
+    pub initial_towards: f64,
+}
+
+impl Default for FaceConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            mean_towards_s: 10.0,
+            mean_away_s: 2.0,
+            away_p_detect: 0.05,
+            initial_towards: 0.9,
+        }
+    }
+}
+
 /// Scaled unscented transform parameters (reference code: alpha 1, beta 2, kappa 2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
@@ -368,7 +423,10 @@ pub struct BirthConfig {
     pub from_measurements: bool,
     /// Expected number of new tracks per step (lambda_B).
     pub expected_births: f64,
-    /// Upper bound of a measurement-driven birth's existence (r_B,max).
+    /// Upper bound of a measurement-driven birth's existence (r_B,max). With a handful of free
+    /// measurements per step the bound is what sets r_B; 0.01 (the paper's fixed births used
+    /// 0.005) keeps two false face boxes in a row, or a reverberant image heard for a few steps,
+    /// from making a track, while a face seen with a voice is confirmed in one step.
     pub max_existence: f64,
     /// Measurements assigned to tracks with a probability above this seed no birth.
     pub max_association: f64,
@@ -389,7 +447,10 @@ pub struct BirthConfig {
     /// A measurement inside this gate (chi-square probability) of a confirmed track's predicted
     /// measurement seeds no birth, so births do not pile up on existing tracks.
     pub suppress_gate_probability: f64,
-    /// Tracks with an existence (GM-PHD: weight) at least this suppress births in their gate.
+    /// Track densities (single-object densities of the posterior, one per label and
+    /// association history) whose weight (GM-PHD: component weight) is at least this suppress
+    /// births in their gate: a tentative track already offers the explanation a birth would,
+    /// and a duplicate label can only share its existence and take over its identity later.
     pub suppress_existence: f64,
 }
 
@@ -399,7 +460,7 @@ impl Default for BirthConfig {
             fixed: Vec::new(),
             from_measurements: true,
             expected_births: 0.2,
-            max_existence: 0.05,
+            max_existence: 0.01,
             max_association: 0.8,
             max_per_step: 4,
             position_std_m: 0.1,
@@ -408,7 +469,7 @@ impl Default for BirthConfig {
             direction_range_m: 1.5,
             default_height_m: 1.5,
             suppress_gate_probability: 0.99,
-            suppress_existence: 0.1,
+            suppress_existence: 0.01,
         }
     }
 }
@@ -573,6 +634,16 @@ impl TrackerConfig {
         positive(v.mean_talk_s, "voice.mean_talk_s")?;
         positive(v.mean_pause_s, "voice.mean_pause_s")?;
         probability(v.initial_talking, "voice.initial_talking")?;
+        let f = &self.face;
+        positive(f.mean_towards_s, "face.mean_towards_s")?;
+        positive(f.mean_away_s, "face.mean_away_s")?;
+        detect_probability(f.away_p_detect, "face.away_p_detect")?;
+        check(
+            f.away_p_detect <= self.camera.p_detect,
+            "face.away_p_detect",
+            "must not exceed camera.p_detect",
+        )?;
+        probability(f.initial_towards, "face.initial_towards")?;
         let e = &self.estimator;
         probability(e.hysteresis_existence, "estimator.hysteresis_existence")?;
         check(

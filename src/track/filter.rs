@@ -49,6 +49,12 @@ impl<const N: usize> Prepared<N> {
         nu.dot(&(self.s_inv * nu))
     }
 
+    /// Standard deviation of component `i` of the predicted measurement h(x) from the state's
+    /// uncertainty alone (the innovation covariance without the measurement noise).
+    pub fn state_spread(&self, sensor: &Sensor<N>, i: usize) -> f64 {
+        (self.s[(i, i)] - sensor.r[(i, i)]).max(0.0).sqrt()
+    }
+
     /// log N(nu; 0, S) from the squared Mahalanobis distance.
     pub fn log_likelihood(&self, d2: f64) -> f64 {
         self.log_norm - 0.5 * d2

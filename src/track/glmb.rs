@@ -5,16 +5,16 @@ use std::collections::HashMap;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::birth::{BirthContext, BirthScan, BirthTerm, births_from_measurements};
+use super::birth::{Birth, BirthContext, BirthScan, BirthTerm, births_from_measurements};
 use super::config::{ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::Transition;
 use super::gaussian::Gaussian;
 use super::joint_update::{Entry, JointUpdate, Posterior, StepModel};
+use super::modes::Modes;
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
 use super::sensor::{Sensor, SensorModel};
-use super::voice::VoiceModel;
 use super::{StepInput, TrackEstimate, Tracker, TrackerStats, covariance6};
 use crate::geometry::{Aabb, Vec3};
 use crate::label::Label;
@@ -28,12 +28,13 @@ pub struct GlmbTracker<const N: usize> {
     cfg: TrackerConfig,
     motion: MotionModel<N>,
     sensors: Vec<Sensor<N>>,
+    modes: Modes,
     region: Option<Aabb>,
     fixed_births: Vec<BirthTerm<N>>,
     seed: u64,
     rng: ChaCha8Rng,
     posterior: Posterior<N>,
-    pending: Vec<BirthTerm<N>>,
+    pending: Vec<Birth<N>>,
     clock: StepClock,
     reporter: Reporter,
     stats: TrackerStats,
@@ -49,15 +50,18 @@ struct LabelInfo {
     best_weight: f64,
 }
 
+/// Compiles the sensor models and assigns their detectability mode slots.
 pub(crate) fn compile_sensors<const N: usize>(
     models: &[SensorModel],
     cfg: &TrackerConfig,
-) -> Result<Vec<Sensor<N>>, ConfigError> {
-    models
+) -> Result<(Vec<Sensor<N>>, Modes), ConfigError> {
+    let mut sensors = models
         .iter()
         .enumerate()
         .map(|(i, m)| Sensor::compile(m, i, cfg))
-        .collect()
+        .collect::<Result<Vec<_>, _>>()?;
+    let modes = Modes::assign(&mut sensors, &cfg.voice, &cfg.face);
+    Ok((sensors, modes))
 }
 
 /// The region grown by the clamp margin, when clamping is configured.
@@ -94,10 +98,12 @@ impl<const N: usize> GlmbTracker<N> {
                 ));
             }
         }
+        let (sensors, modes) = compile_sensors(&sensors, cfg)?;
         Ok(Self {
             cfg: cfg.clone(),
             motion,
-            sensors: compile_sensors(&sensors, cfg)?,
+            sensors,
+            modes,
             region,
             fixed_births,
             seed,
@@ -131,14 +137,17 @@ impl<const N: usize> GlmbTracker<N> {
 
     /// Existence probability of every label in the posterior.
     pub fn existence(&self) -> Vec<(Label, f64)> {
-        let (_, labels) = self.marginals(&[]);
+        let (_, _, labels) = self.marginals(&[]);
         let mut v: Vec<_> = labels.iter().map(|(l, i)| (*l, i.existence)).collect();
         v.sort_by_key(|p| p.0);
         v
     }
 
     /// Entry weights, label marginals and (when scans are given) r_U per measurement.
-    fn marginals(&self, scans: &[SensorScan]) -> (Vec<Vec<f64>>, HashMap<Label, LabelInfo>) {
+    fn marginals(
+        &self,
+        scans: &[SensorScan],
+    ) -> (Vec<f64>, Vec<Vec<f64>>, HashMap<Label, LabelInfo>) {
         let post = &self.posterior;
         let mut entry_w = vec![0.0; post.entries.len()];
         for h in 0..post.hyps.len() {
@@ -171,7 +180,7 @@ impl<const N: usize> GlmbTracker<N> {
                 }
             }
         }
-        (r_u, labels)
+        (entry_w, r_u, labels)
     }
 
     fn estimate_of(&self, entry: &Entry<N>, info: &LabelInfo) -> TrackEstimate {
@@ -188,6 +197,32 @@ impl<const N: usize> GlmbTracker<N> {
                 0.0
             },
         }
+    }
+
+    /// The track densities that suppress births: every entry of weight at least
+    /// `birth.suppress_existence`, except those within `SAME_DENSITY_M` of a heavier entry of
+    /// the same label (the association histories of a label mostly differ by one measurement
+    /// and give nearly the same density; gating against each would cost a filter preparation
+    /// per entry and sensor for nothing).
+    fn suppressing_densities(&self, entry_w: &[f64]) -> Vec<Gaussian<N>> {
+        const SAME_DENSITY_M: f64 = 0.1;
+        let entries = &self.posterior.entries;
+        let mut order: Vec<usize> = (0..entries.len())
+            .filter(|&e| entry_w[e] >= self.cfg.birth.suppress_existence)
+            .collect();
+        order.sort_by(|&a, &b| entry_w[b].total_cmp(&entry_w[a]));
+        let mut kept: Vec<usize> = Vec::new();
+        for e in order {
+            let p = position_of(&entries[e].density.mean);
+            let near = kept.iter().any(|&k| {
+                entries[k].label == entries[e].label
+                    && (position_of(&entries[k].density.mean) - p).norm() < SAME_DENSITY_M
+            });
+            if !near {
+                kept.push(e);
+            }
+        }
+        kept.iter().map(|&e| entries[e].density.clone()).collect()
     }
 
     /// The standard GLMB estimator (MAP cardinality, best hypothesis of that cardinality),
@@ -225,37 +260,42 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
         let scans = collect(input, &self.sensors, &mut self.stats);
         let (f, q) = self.motion.transition(dt);
         let mut births = self.fixed_births.clone();
-        births.append(&mut self.pending);
+        let mut birth_modes = vec![self.modes.initial(); births.len()];
+        for b in self.pending.drain(..) {
+            births.push(b.term);
+            birth_modes.push(b.modes);
+        }
         let model = StepModel {
             k,
             dt,
             transition: Transition::new(f, q),
-            voice: VoiceModel::new(&self.cfg.voice),
+            modes: &self.modes,
             survival: self.cfg.survival_probability,
             sensors: &self.sensors,
             scans: &scans,
             births: &births,
+            birth_modes: &birth_modes,
             glmb: &self.cfg.glmb,
             ukf: &self.cfg.ukf,
             camera: &self.cfg.camera,
             clamp: clamp_region(&self.cfg, self.region.as_ref()),
         };
         self.posterior = self.work.run(&self.posterior, &model, &mut self.rng);
-        let (r_u, labels) = self.marginals(&scans);
+        let (entry_w, r_u, labels) = self.marginals(&scans);
         let audio = scans.iter().any(|s| self.sensors[s.sensor].audio);
         let out = self.report(&labels, audio);
         if self.cfg.birth.from_measurements {
-            // Births are suppressed near every track that is reasonably likely to exist.
-            let confirmed: Vec<Gaussian<N>> = labels
-                .values()
-                .filter(|i| i.existence >= self.cfg.birth.suppress_existence)
-                .map(|i| self.posterior.entries[i.best_entry].density.clone())
-                .collect();
+            // Births are suppressed near every track density that is reasonably likely: a
+            // second label born from measurements a track already explains could only share
+            // that track's existence (the data cannot tell the two apart) and take over its
+            // identity later.
+            let confirmed = self.suppressing_densities(&entry_w);
             let ctx = BirthContext {
                 cfg: &self.cfg.birth,
                 ukf: &self.cfg.ukf,
                 region: self.region.as_ref(),
                 sensors: &self.sensors,
+                modes: &self.modes,
             };
             let birth_scans: Vec<BirthScan> = scans
                 .iter()
@@ -264,6 +304,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
                     sensor: s.sensor,
                     z: &s.z,
                     assoc: a,
+                    activity: s.activity,
                 })
                 .collect();
             self.pending = births_from_measurements(&ctx, &birth_scans, &confirmed);
@@ -272,7 +313,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
     }
 
     fn set_sensors(&mut self, sensors: Vec<SensorModel>) -> Result<(), ConfigError> {
-        self.sensors = compile_sensors(&sensors, &self.cfg)?;
+        (self.sensors, self.modes) = compile_sensors(&sensors, &self.cfg)?;
         // Pending births refer to measurements of the old calibration.
         self.pending.clear();
         Ok(())
@@ -288,5 +329,67 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
 
     fn stats(&self) -> TrackerStats {
         self.stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::track::config::FilterKind;
+    use crate::track::{Measurement, Scan};
+
+    /// A tentative track (existence far below a confirmed one's) already explains the
+    /// measurements at its bearing: they seed no second birth beside it, which could only share
+    /// its existence and later take over its identity.
+    #[test]
+    fn a_tentative_track_suppresses_births_from_its_own_measurements() {
+        let cfg = TrackerConfig::default();
+        let origin = Vec3::new(3.0, 2.5, 0.8);
+        let sensor = SensorModel::AudioDirection {
+            origin,
+            noise_std_rad: 5f64.to_radians(),
+            uses_elevation: false,
+            cone_axis: None,
+            p_detect: 0.6,
+            min_p_detect: 0.02,
+            clutter_rate: 2.0,
+            filter: FilterKind::Ekf,
+        };
+        let region = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
+        let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
+        let mut tracker =
+            GlmbTracker::new(&cfg, motion, vec![sensor], Some(region), vec![], 1).unwrap();
+        let step = |tracker: &mut GlmbTracker<6>, k: u64, az: f64| {
+            tracker.step(&StepInput {
+                k,
+                t: k as f64 * 0.128,
+                scans: vec![Scan {
+                    sensor: 0,
+                    measurements: vec![Measurement::Direction {
+                        azimuth: az,
+                        elevation: None,
+                    }],
+                    activity: Some(0.9),
+                }],
+            })
+        };
+        step(&mut tracker, 0, 0.7);
+        assert_eq!(
+            tracker.pending.len(),
+            1,
+            "the first measurement seeds a birth"
+        );
+        step(&mut tracker, 1, 0.71);
+        let existence = tracker.existence();
+        assert_eq!(existence.len(), 1);
+        let r = existence[0].1;
+        assert!(
+            r > cfg.birth.suppress_existence && r < 0.1,
+            "tentative: {r}"
+        );
+        assert!(tracker.pending.is_empty(), "{:?}", tracker.pending);
+        // A measurement far from the track still seeds one.
+        step(&mut tracker, 2, -1.5);
+        assert_eq!(tracker.pending.len(), 1);
     }
 }

@@ -20,6 +20,7 @@ use super::filter::{Transition, prepare};
 use super::gaussian::Gaussian;
 use super::glmb::{clamp_region, compile_sensors};
 use super::joint_update::clamp_position;
+use super::modes::Modes;
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
 use super::sensor::{Sensor, SensorModel};
@@ -59,6 +60,8 @@ pub struct GmphdTracker<const N: usize> {
     cfg: TrackerConfig,
     motion: MotionModel<N>,
     sensors: Vec<Sensor<N>>,
+    /// Detectability modes of the sensors; used only to condition births (the PHD has no modes).
+    modes: Modes,
     region: Option<Aabb>,
     fixed_births: Vec<BirthTerm<N>>,
     comps: Vec<Component<N>>,
@@ -80,10 +83,12 @@ impl<const N: usize> GmphdTracker<N> {
         fixed_births: Vec<BirthTerm<N>>,
     ) -> Result<Self, ConfigError> {
         cfg.validate()?;
+        let (sensors, modes) = compile_sensors(&sensors, cfg)?;
         Ok(Self {
             cfg: cfg.clone(),
             motion: motion.validated()?,
-            sensors: compile_sensors(&sensors, cfg)?,
+            sensors,
+            modes,
             region,
             fixed_births,
             comps: Vec::new(),
@@ -407,6 +412,7 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
                 ukf: &self.cfg.ukf,
                 region: self.region.as_ref(),
                 sensors: &self.sensors,
+                modes: &self.modes,
             };
             let birth_scans: Vec<BirthScan> = scans
                 .iter()
@@ -415,15 +421,19 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
                     sensor: s.sensor,
                     z: &s.z,
                     assoc: a,
+                    activity: s.activity,
                 })
                 .collect();
-            self.pending = births_from_measurements(&ctx, &birth_scans, &confirmed);
+            self.pending = births_from_measurements(&ctx, &birth_scans, &confirmed)
+                .into_iter()
+                .map(|b| b.term)
+                .collect();
         }
         out
     }
 
     fn set_sensors(&mut self, sensors: Vec<SensorModel>) -> Result<(), ConfigError> {
-        self.sensors = compile_sensors(&sensors, &self.cfg)?;
+        (self.sensors, self.modes) = compile_sensors(&sensors, &self.cfg)?;
         self.pending.clear();
         Ok(())
     }

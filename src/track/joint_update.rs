@@ -14,12 +14,12 @@ use super::config::{CameraConfig, GlmbConfig, UkfConfig};
 use super::filter::{Gain, Prepared, Transition, prepare, update};
 use super::gaussian::{Gaussian, log_add, log_sum_exp};
 use super::gibbs::{DEAD, Proposal, Sampler};
+use super::modes::{Modes, mode_outcome};
 use super::motion::position_of;
 use super::occlusion::occludes;
 use super::scan::SensorScan;
 use super::sensor::Sensor;
 use super::slice_set::SliceSet;
-use super::voice::{VoiceModel, audio_outcome};
 use crate::geometry::{Aabb, Vec3};
 use crate::label::Label;
 
@@ -30,8 +30,8 @@ pub(crate) struct Entry<const N: usize> {
     pub density: Gaussian<N>,
     /// Whether the last update associated an audio measurement.
     pub audio: bool,
-    /// Probability that the track is talking (the voice mode).
-    pub talking: f64,
+    /// Probability of "on" of each detectability mode (voice, faces; see `modes`).
+    pub modes: Vec<f64>,
     /// (scan, measurement) pairs used by the last update.
     pub assoc: Vec<(u16, u16)>,
 }
@@ -72,11 +72,13 @@ pub(crate) struct StepModel<'a, const N: usize> {
     pub k: u64,
     pub dt: f64,
     pub transition: Transition<N>,
-    pub voice: VoiceModel,
+    pub modes: &'a Modes,
     pub survival: f64,
     pub sensors: &'a [Sensor<N>],
     pub scans: &'a [SensorScan],
     pub births: &'a [BirthTerm<N>],
+    /// Detectability modes of each birth (`births` order).
+    pub birth_modes: &'a [Vec<f64>],
     pub glmb: &'a GlmbConfig,
     pub ukf: &'a UkfConfig,
     pub camera: &'a CameraConfig,
@@ -90,7 +92,7 @@ const NONE: u32 = u32::MAX;
 struct Candidate<const N: usize> {
     label: Label,
     pred: Gaussian<N>,
-    talking: f64,
+    modes: Vec<f64>,
     existence: f64,
     ready: bool,
 }
@@ -100,8 +102,8 @@ struct Candidate<const N: usize> {
 pub(crate) struct JointUpdate<const N: usize> {
     cands: Vec<Candidate<N>>,
     pd: Vec<f64>,
-    /// (P_D talking, P_D silent) of audio sensors per (candidate, scan).
-    audio_pd: Vec<(f64, f64)>,
+    /// (P_D on, P_D off) of mode-following sensors per (candidate, scan).
+    mode_pd: Vec<(f64, f64)>,
     /// (log(1 - P_D), log P_D - log kappa) per (candidate, scan), P_D marginal over the mode.
     log_pd: Vec<(f64, f64)>,
     /// Index into `preps` per (candidate, scan); NONE when the sensor cannot observe it.
@@ -193,7 +195,11 @@ impl<const N: usize> JointUpdate<N> {
             self.cands.push(Candidate {
                 label: Label::new(m.k, b as u32),
                 pred: birth.density.clone(),
-                talking: m.voice.initial(),
+                modes: m
+                    .birth_modes
+                    .get(b)
+                    .cloned()
+                    .unwrap_or_else(|| m.modes.initial()),
                 existence: birth.existence,
                 ready: false,
             });
@@ -202,7 +208,7 @@ impl<const N: usize> JointUpdate<N> {
             self.cands.push(Candidate {
                 label: e.label,
                 pred: e.density.clone(),
-                talking: m.voice.predict(e.talking, m.dt),
+                modes: m.modes.predict(&e.modes, m.dt),
                 existence: m.survival,
                 ready: false,
             });
@@ -212,8 +218,8 @@ impl<const N: usize> JointUpdate<N> {
         self.pd.resize(n * c, 0.0);
         self.log_pd.clear();
         self.log_pd.resize(n * c, (0.0, f64::NEG_INFINITY));
-        self.audio_pd.clear();
-        self.audio_pd.resize(n * c, (0.0, 0.0));
+        self.mode_pd.clear();
+        self.mode_pd.resize(n * c, (0.0, 0.0));
         self.prep_idx.clear();
         self.prep_idx.resize(n * c, NONE);
         self.preps.clear();
@@ -243,21 +249,18 @@ impl<const N: usize> JointUpdate<N> {
         let sc = m.scans.len();
         for (s, scan) in m.scans.iter().enumerate() {
             let sensor = &m.sensors[scan.sensor];
-            let mut pd = sensor.p_detect_at(&cand.pred.mean, scan.activity);
-            let prep = if pd > 0.0 {
-                prepare(sensor, &cand.pred, m.ukf)
-            } else {
-                None
-            };
-            if prep.is_none() {
-                pd = 0.0;
-            }
-            if sensor.audio {
-                // Silent tracks are detected with the floor probability; the row uses the
-                // detection probability marginal over the talking mode.
-                let silent = sensor.min_p_detect.min(pd);
-                self.audio_pd[c * sc + s] = (pd, silent);
-                pd = cand.talking * pd + (1.0 - cand.talking) * silent;
+            let prep = prepare(sensor, &cand.pred, m.ukf);
+            let mut pd = prep.as_ref().map_or(0.0, |p| {
+                sensor.p_detect_of(&cand.pred.mean, p, scan.activity)
+            });
+            let prep = prep.filter(|_| pd > 0.0);
+            if let Some(slot) = sensor.mode {
+                // A track whose mode is off (silent, face turned away) is detected with the
+                // sensor's off probability; the row uses the P_D marginal over the mode.
+                let off = sensor.off_p_detect.min(pd);
+                self.mode_pd[c * sc + s] = (pd, off);
+                let on = cand.modes[slot];
+                pd = on * pd + (1.0 - on) * off;
             }
             let log_miss = (-pd).ln_1p();
             let log_hit = pd.ln() - sensor.log_clutter;
@@ -351,15 +354,15 @@ impl<const N: usize> JointUpdate<N> {
         let mut term = self.proposal.log_alive(c);
         let mut audio = false;
         let mut assoc = Vec::new();
-        // Audio outcomes are scored jointly with the talking mode (sequentially, which is exact
-        // for sensors independent given the mode).
-        let mut talking = self.cands[c].talking;
+        // Outcomes of mode-following sensors are scored jointly with their mode (sequentially,
+        // which is exact for sensors independent given the modes).
+        let mut modes = self.cands[c].modes.clone();
         for (s, &j) in self.key[1..].iter().enumerate() {
             let sensor = &m.sensors[m.scans[s].sensor];
-            if sensor.audio {
-                let (pd_talk, pd_silent) = self.audio_pd[c * sc + s];
-                let (f, after) = audio_outcome(talking, pd_talk, pd_silent, j != 0);
-                talking = after;
+            if let Some(slot) = sensor.mode {
+                let (pd_on, pd_off) = self.mode_pd[c * sc + s];
+                let (f, after) = mode_outcome(modes[slot], pd_on, pd_off, j != 0);
+                modes[slot] = after;
                 term += f.ln();
                 if j != 0 {
                     term -= sensor.log_clutter;
@@ -402,7 +405,7 @@ impl<const N: usize> JointUpdate<N> {
             label: cand.label,
             density,
             audio,
-            talking,
+            modes,
             assoc,
         };
         (entry, term)

@@ -2,8 +2,9 @@
 //!
 //! The default tracker is the multi-sensor GLMB filter with joint prediction and update (Vo, Vo
 //! & Beard 2019; spec 000 3.4-3.7, spec 003 5.9-5.10) over a state `[position; velocity]`, with
-//! a Gibbs sampler per parent hypothesis, measurement-driven births, activity-driven audio
-//! detection and the standard GLMB estimator with a short hysteresis. A GM-PHD filter with label
+//! a Gibbs sampler per parent hypothesis, measurement-driven births, detection probabilities that
+//! follow per-track modes (talking or silent; face towards each camera or turned away) and the
+//! standard GLMB estimator with a short hysteresis. A GM-PHD filter with label
 //! propagation (spec 002) sits behind the same [`Tracker`] trait for comparison.
 //!
 //! A tracker is a plain struct: no I/O, no clocks, no threads. The caller passes the step time and
@@ -20,6 +21,9 @@
 //!   candidates, audio azimuth (and elevation) from an array centroid with the azimuth wrapped
 //!   in the innovation, the cone angle of a linear array, camera pixels through
 //!   `geometry::Camera` (distortion included; undefined behind the camera), generic linear points.
+//!   A camera detects a track with its P_D times the probability that the track is in the image
+//!   (the predicted pixel's spread against the borders), so a track that drifted just out of
+//!   view can take a detection and be corrected.
 //!   Measurements are held in a 3-vector; smaller ones are padded with zero innovation, a zero
 //!   Jacobian row and unit noise, which changes neither the update nor the distance.
 //! - `filter`: KF / EKF (analytic Jacobians, Joseph form) and UKF (alpha, beta, kappa), split into
@@ -27,8 +31,13 @@
 //!   the parts it uses. Covariances are symmetrised and eigenvalue-floored when a Cholesky pivot
 //!   fails; non-finite numbers make the update unavailable instead of producing NaN.
 //! - `gibbs`, `joint_update`, `glmb`: the MS-GLMB joint prediction-update (see below).
-//! - `birth`: fixed birth points and measurement-driven births.
-//! - `voice`: the per-track talking/silent mode behind the audio detection probability.
+//! - `birth`: fixed birth points and measurement-driven births. A birth is conditioned on the
+//!   scans of its step that did not place it (a voice where the camera sees no face starts with
+//!   the camera's miss against it), and no birth is seeded from a measurement in the gate of a
+//!   track density of weight 0.01 or more (a duplicate label could only share that track's
+//!   existence and later take its identity).
+//! - `modes`: the per-track detectability modes, two-state Markov chains: the voice (talking or
+//!   silent) behind the audio P_D, and per camera the face (towards it or turned away).
 //! - `estimator`: reporting hysteresis and `speaking` smoothing; `gmphd`: the GM-PHD (its label matching uses
 //!   `eval::assignment`, the project's one assignment solver).
 //!
@@ -54,12 +63,19 @@
 //! - A talking, visible person gets a track at the second step (0.26 s at 128 ms steps): the
 //!   first step's detections seed a birth on the camera ray at the depth an audio measurement
 //!   picks, confirmed by the next step's measurements.
-//! - Camera P_D 0.9 instead of the paper's 0.99: a confirmed track's existence goes 0.99, 0.90,
-//!   0.47 over three frames without its face (speaker silent), where 0.99 would end it after one
-//!   (spec 003 5.12). A camera that sends no frame costs nothing beyond P_S.
+//! - Camera P_D 0.9 (the paper: 0.99) for a face towards the camera, 0.05 for one turned away,
+//!   with a face mode per track and camera (mean 10 s towards, 2 s away): a silent speaker's
+//!   existence goes 0.99, 0.95, 0.91 over three frames without the face and stays above 0.6
+//!   through 2 s of them, so looking away keeps the label; a speaker gone for good (no face in
+//!   view, no voice) is ended within about 3 s. Without the mode the 0.1 of every miss would end
+//!   the track within three frames (spec 003 5.12). A camera that sends no frame costs nothing
+//!   beyond P_S.
 //! - Audio P_D follows the array's voice activity and, per track, a talking/silent Markov mode
 //!   (mean talk and pause 2 s): a speaker who pauses 2 s while another talks keeps the label.
-//! - P_S is per step (the paper's 0.999 at 128 ms steps).
+//! - P_S is per step (the paper's 0.999 at 128 ms steps). The Langevin model keeps velocity for
+//!   about 0.5 s (beta 2/s instead of the paper's 10/s) with velocity noise 0.27 m/s instead of 1.2 (see
+//!   `MotionConfig`).
+//! - Measurement-driven births start with r_B = 0.01 (the paper's fixed births: 0.005).
 
 mod birth;
 mod config;
@@ -70,20 +86,20 @@ mod gibbs;
 mod glmb;
 mod gmphd;
 mod joint_update;
+mod modes;
 mod motion;
 mod occlusion;
 mod scan;
 mod sensor;
 mod slice_set;
-mod voice;
 
 use nalgebra::Matrix6;
 
 pub use birth::BirthTerm;
 pub use config::{
     AudioDirectionConfig, AudioPositionConfig, BirthConfig, CameraConfig, ConfigError,
-    EstimatorConfig, FilterKind, FixedBirth, GlmbConfig, GmphdConfig, MotionConfig, MotionKind,
-    TrackerConfig, TrackerKind, UkfConfig, VoiceConfig,
+    EstimatorConfig, FaceConfig, FilterKind, FixedBirth, GlmbConfig, GmphdConfig, MotionConfig,
+    MotionKind, TrackerConfig, TrackerKind, UkfConfig, VoiceConfig,
 };
 pub use gaussian::Gaussian;
 pub use glmb::GlmbTracker;

@@ -155,7 +155,13 @@ mod tests {
 
     #[test]
     fn langevin_matches_paper_table_iii() {
-        let m = MotionModel::<6>::from_config(&MotionConfig::default()).unwrap();
+        // The paper's values (the defaults differ, see `MotionConfig`).
+        let paper = MotionConfig {
+            beta_per_s: 10.0,
+            sigma_m_per_s: [1.2, 1.2, 0.2],
+            ..MotionConfig::default()
+        };
+        let m = MotionModel::<6>::from_config(&paper).unwrap();
         let (f, q) = m.transition(0.128);
         // Spec 003 5.3: e^{-beta phi} = 0.278037, velocity noise variances 1.3287 / 0.0369.
         assert!((f[(3, 3)] - 0.278037).abs() < 1e-6);

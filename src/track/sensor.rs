@@ -11,7 +11,8 @@ use std::f64::consts::PI;
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector, Vector3};
 
 use super::config::{ConfigError, FilterKind, TrackerConfig};
-use super::gaussian::chi_square_quantile;
+use super::filter::Prepared;
+use super::gaussian::{chi_square_quantile, normal_cdf};
 use super::motion::position_of;
 use crate::geometry::{
     Aabb, ArrayShape, Camera, Layout, Pixel, Vec3, direction_from_angles, wrap_angle,
@@ -222,7 +223,12 @@ pub(crate) struct Sensor<const N: usize> {
     /// Noise covariance, padded with unit variances.
     pub r: Matrix3<f64>,
     pub p_detect: f64,
+    /// Audio: floor of the activity-scaled P_D, and the P_D of a silent track.
     pub min_p_detect: f64,
+    /// Detection probability while the track's mode is "off" (silent, face turned away).
+    pub off_p_detect: f64,
+    /// The track's detectability mode slot this sensor follows (see `modes`); None: plain P_D.
+    pub mode: Option<usize>,
     /// log of the clutter intensity kappa(z) = rate * uniform density.
     pub log_clutter: f64,
     pub filter: FilterKind,
@@ -439,12 +445,19 @@ impl<const N: usize> Sensor<N> {
         check_probability(p_detect, index, "p_detect")?;
         check_probability(min_p_detect, index, "min_p_detect")?;
         check_positive(rate, index, "clutter_rate")?;
+        let off_p_detect = if audio {
+            min_p_detect
+        } else {
+            cfg.face.away_p_detect.min(p_detect)
+        };
         Ok(Self {
             obs,
             dim,
             r,
             p_detect,
             min_p_detect,
+            off_p_detect,
+            mode: None,
             log_clutter: rate.ln() + log_density,
             filter,
             audio,
@@ -604,6 +617,41 @@ impl<const N: usize> Sensor<N> {
             d[0] = wrap_angle(d[0]);
         }
         d
+    }
+
+    /// Detection probability of a track with the prepared update `prep` of its density: for a
+    /// camera, `p_detect` times the probability that the track is in the image (the predicted
+    /// pixel's spread from the state uncertainty against the image borders), so a track whose
+    /// mean has drifted just out of view can still take a detection and be corrected; for other
+    /// sensors as [`Self::p_detect_at`] at the mean.
+    pub fn p_detect_of(
+        &self,
+        mean: &SVector<f64, N>,
+        prep: &Prepared<N>,
+        activity: Option<f64>,
+    ) -> f64 {
+        let Observation::Camera { camera, .. } = &self.obs else {
+            return self.p_detect_at(mean, activity);
+        };
+        // A mean that projects into the image but is not in view was folded there by a strong
+        // distortion polynomial: it is far off-axis.
+        let p = position_of(mean);
+        if !camera.in_view(&p)
+            && camera
+                .project(&p)
+                .is_some_and(|px| camera.contains_pixel(&px))
+        {
+            return 0.0;
+        }
+        let inside = |c: f64, sd: f64, size: f64| -> f64 {
+            if sd < 1e-9 {
+                return if (0.0..=size).contains(&c) { 1.0 } else { 0.0 };
+            }
+            (normal_cdf((size - c) / sd) - normal_cdf(-c / sd)).clamp(0.0, 1.0)
+        };
+        let u = inside(prep.zhat[0], prep.state_spread(self, 0), camera.width);
+        let v = inside(prep.zhat[1], prep.state_spread(self, 1), camera.height);
+        self.p_detect * u * v
     }
 
     /// Detection probability of a track at state `x` given the scan's voice activity.
@@ -848,6 +896,43 @@ mod tests {
         assert!((s.p_detect_at(&x, Some(0.5)) - 0.3).abs() < 1e-12);
         assert!((s.p_detect_at(&x, Some(0.0)) - 0.02).abs() < 1e-12);
         assert!((s.p_detect_at(&x, Some(f64::NAN)) - 0.6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_camera_detects_a_track_with_the_probability_that_it_is_in_view() {
+        use crate::track::filter::prepare;
+        use crate::track::gaussian::Gaussian;
+        // Looking along +y from (2, 0, 1.5), 1000 px focal length, 1920 x 1080.
+        let k = Matrix3::new(1000.0, 0.0, 960.0, 0.0, 1000.0, 540.0, 0.0, 0.0, 1.0);
+        let r = Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0, 1.0, 0.0);
+        let c = Vec3::new(2.0, 0.0, 1.5);
+        let camera = Camera::from_krt("cam", 1920.0, 1080.0, k, r, -(r * c), None).unwrap();
+        let cfg = TrackerConfig::default();
+        let model = SensorModel::CameraPoint {
+            camera: Box::new(camera),
+            noise_std_px: 10.0,
+            p_detect: 0.9,
+            clutter_rate: 1.0,
+            filter: FilterKind::Ekf,
+            face_size_m: None,
+            face_size_log_std: 0.1,
+        };
+        let s = Sensor::<6>::compile(&model, 0, &cfg).unwrap();
+        let pd = |x: f64, sd: f64| {
+            let mut cov = SMatrix::<f64, 6, 6>::identity() * 0.01;
+            cov[(0, 0)] = sd * sd;
+            let g = Gaussian {
+                mean: state_of::<6>(&Vec3::new(x, 3.0, 1.5), &Vec3::zeros()),
+                cov,
+            };
+            let p = prepare(&s, &g, &cfg.ukf).unwrap();
+            s.p_detect_of(&g.mean, &p, None)
+        };
+        // The left image border is at x = 2 - 3 * 0.96 = -0.88 at 3 m.
+        assert!((pd(2.0, 0.05) - 0.9).abs() < 1e-6);
+        let edge = pd(-0.95, 0.3);
+        assert!(edge > 0.2 && edge < 0.45, "{edge}");
+        assert!(pd(-1.6, 0.01) < 1e-6);
     }
 
     #[test]
