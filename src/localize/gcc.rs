@@ -510,3 +510,59 @@ pub(crate) fn direct_gcc(
     }
     acc / nb as f64
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::localize::synth;
+
+    const FS: f64 = 16000.0;
+    const C: f64 = 343.0;
+
+    #[test]
+    fn sliding_max_matches_brute_force() {
+        let array = MicArray::new(
+            "a",
+            vec![Vec3::zeros(), Vec3::new(0.3, 0.0, 0.0)],
+            vec![0, 1],
+        )
+        .unwrap();
+        let sig = synth::white(4096, 9);
+        let x = synth::render(
+            &array.mics,
+            &[(Vec3::new(1.0, 1.0, 0.0), &sig)],
+            FS,
+            C,
+            None,
+            0.3,
+            4,
+        );
+        let mut bank = GccBank::new(
+            &array,
+            2048,
+            (128, 256),
+            GccSettings {
+                interpolation: 10,
+                beta: 1.0,
+                smoothing: 0.0,
+            },
+            FS,
+            C,
+        );
+        bank.whiten(&synth::spectra_at(&x, 0, 2048));
+        bank.compute();
+        let len = bank.table.len();
+        for w in [0usize, 1, 3, 17, 200] {
+            let mut out = vec![0.0; len];
+            let mut work = vec![0.0; 2 * len];
+            bank.max_filter(&[w], &mut out, &mut work);
+            for (i, got) in out.iter().enumerate() {
+                let lo = i.saturating_sub(w);
+                let hi = (i + w).min(len - 1);
+                let m = bank.table[lo..=hi].iter().copied().fold(f64::MIN, f64::max);
+                assert_eq!(*got, m, "w {w} i {i}");
+            }
+        }
+    }
+}

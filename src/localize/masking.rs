@@ -57,7 +57,12 @@ impl SubbandMask {
         let nb = bank.band.1 + 1 - bank.band.0;
         let width = width.clamp(1, nb);
         let count = nb.div_ceil(width);
-        let mics = bank.pairs.iter().map(|p| p.a.max(p.b) + 1).max().unwrap_or(0);
+        let mics = bank
+            .pairs
+            .iter()
+            .map(|p| p.a.max(p.b) + 1)
+            .max()
+            .unwrap_or(0);
         let bin = 2.0 * PI * fs / bank.frame as f64;
         Self {
             width,
@@ -264,7 +269,10 @@ mod tests {
             if b % 2 == 0 {
                 assert!(*dom > 0.95, "own sub-band {b}: {dom}");
             } else {
-                assert!((dom - leak).abs() < 0.05, "sub-band {b}: {dom} vs leakage {leak}");
+                assert!(
+                    (dom - leak).abs() < 0.05,
+                    "sub-band {b}: {dom} vs leakage {leak}"
+                );
             }
         }
         // Masking the first source leaves the second's peak and takes away the first's.
@@ -273,7 +281,8 @@ mod tests {
                 .pairs
                 .iter()
                 .map(|p| {
-                    let pos = (p.offset + p.half) as f64 + (d[p.a] - d[p.b]) * bank.steps_per_second;
+                    let pos =
+                        (p.offset + p.half) as f64 + (d[p.a] - d[p.b]) * bank.steps_per_second;
                     lerp(&bank.table, pos)
                 })
                 .sum();
@@ -283,8 +292,14 @@ mod tests {
         assert!(before.0 > 0.3 && before.1 > 0.3, "{before:?}");
         mask.apply(&mut bank, None);
         let after = (srp(&bank, &d1), srp(&bank, &d2));
-        assert!(after.1 > 0.9, "second source after masking the first: {after:?}");
-        assert!(after.0 < 0.5 * after.1, "first source after masking it: {after:?}");
+        assert!(
+            after.1 > 0.9,
+            "second source after masking the first: {after:?}"
+        );
+        assert!(
+            after.0 < 0.5 * after.1,
+            "first source after masking it: {after:?}"
+        );
         // Keeping the only source removes nothing.
         mask.apply(&mut bank, Some(0));
         assert!((srp(&bank, &d1) - before.0).abs() < 1e-9);

@@ -1,7 +1,8 @@
 //! The acoustic localiser: GCC-PHAT per microphone pair, SRP-PHAT by table look-up, a
 //! hierarchical geodesic-sphere search for directions and stochastic region contraction for 3-D
-//! positions, several sources per frame by removing each found source from the GCCs, and a
-//! per-frame voice-activity score.
+//! positions, several sources per frame by masking the sub-bands each found source dominates
+//! (`masking`) and recomputing the GCCs before the next search, and a per-frame voice-activity
+//! score.
 //!
 //! Pairs never cross arrays: each array is localised on its own (spec 000 section 2.6) and the
 //! tracker fuses the arrays.
@@ -9,9 +10,9 @@
 mod activity;
 mod config;
 mod directions;
-mod masking;
 mod gcc;
 mod geodesic;
+mod masking;
 mod noise_floor;
 mod region_contraction;
 #[cfg(test)]
@@ -29,8 +30,8 @@ pub use config::{
 
 use activity::ActivityTracker;
 use directions::DirectionSearch;
-use masking::SubbandMask;
 use gcc::{GccBank, GccSettings};
+use masking::SubbandMask;
 use noise_floor::BinNoiseFloor;
 use region_contraction::PositionSearch;
 
@@ -248,13 +249,7 @@ impl Localizer {
                 activity: 0.0,
             };
             if shape_ok {
-                process_array(
-                    state,
-                    spectra,
-                    &self.cfg,
-                    &mut self.rng,
-                    &mut obs,
-                );
+                process_array(state, spectra, &self.cfg, &mut self.rng, &mut obs);
             }
             out.push(obs);
         }
