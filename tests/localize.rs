@@ -417,8 +417,19 @@ mod scene_eval {
                         )
                     })
                     .collect();
+                let level_db: Vec<String> = energies
+                    .iter()
+                    .map(|(e, l)| format!("{:.0}", 10.0 * (e / l).log10()))
+                    .collect();
+                let idle: Vec<String> = truth
+                    .sources
+                    .iter()
+                    .filter(|s| !is_active(s))
+                    .filter_map(|s| s.position_at(tm))
+                    .map(|p| format!("{:.0}", deg(azimuth_of(&(p - centre)))))
+                    .collect();
                 eprintln!(
-                    "t {tm:5.2} act {:.2} truth {truth_az:?} found {found:?}",
+                    "t {tm:5.2} act {:.2} truth {truth_az:?} found {found:?} level_db {level_db:?} idle {idle:?}",
                     obs.activity
                 );
             }

@@ -54,6 +54,15 @@ pub(crate) struct DirectionSearch {
     levels: Vec<Level>,
     /// Far-field TDOA of pair q in fine steps is `pair_steps[q] . d`.
     pair_steps: Vec<Vec3>,
+    /// The band's PHAT kernel at fine lag offsets (see `GccBank`).
+    kernel: Vec<f64>,
+    /// Directions where an accepted candidate's main lobe exceeds this are excluded (1: off).
+    lobe_limit: f64,
+    /// Table positions of the accepted directions' lags, pair-minor (see `excluded`).
+    accepted_at: Vec<f64>,
+    /// Microphone offsets from the centroid divided by the speed of sound (seconds per unit
+    /// direction).
+    mic_offsets: Vec<Vec3>,
     /// Absolute table position of every pair's zero lag.
     zeros: Vec<f64>,
     /// Max-filter half-widths (fine steps) per coarse level and pair.
@@ -115,6 +124,7 @@ impl DirectionSearch {
         region: Option<Aabb>,
         levels: &[u32],
         refine_step: f64,
+        lobe_limit: f64,
         speed_of_sound: f64,
     ) -> Self {
         let centroid = array.centroid();
@@ -155,6 +165,14 @@ impl DirectionSearch {
             ambiguity,
             levels: Vec::new(),
             pair_steps,
+            kernel: bank.kernel().to_vec(),
+            lobe_limit,
+            accepted_at: Vec::new(),
+            mic_offsets: array
+                .mics
+                .iter()
+                .map(|m| (m - centroid) / speed_of_sound)
+                .collect(),
             zeros,
             widths: Vec::new(),
             filtered: Vec::new(),
@@ -321,13 +339,44 @@ impl DirectionSearch {
         }
     }
 
-    fn excluded(&self, d: &Vec3, accepted: &[Vec3], exclusion: f64) -> bool {
-        match self.ambiguity {
+    /// Whether `d` is too near an accepted direction: within `exclusion` radians, or inside
+    /// its main lobe. `at` holds the table positions of `d`'s lags when known (grid points);
+    /// `self.accepted_at` must hold those of `accepted`.
+    fn excluded(&self, d: &Vec3, at: Option<&[f32]>, accepted: &[Vec3], exclusion: f64) -> bool {
+        let near = match self.ambiguity {
             Ambiguity::Cone { .. } => accepted.iter().any(|a| self.separation(d, a) < exclusion),
             // Same test as the angle, without an arc cosine per grid point.
             _ => {
                 let cos = exclusion.cos();
                 accepted.iter().any(|a| a.dot(d) > cos)
+            }
+        };
+        if near || self.lobe_limit >= 1.0 || accepted.is_empty() {
+            return near;
+        }
+        let np = self.pair_steps.len();
+        let last = (self.kernel.len() - 2) as f64;
+        // The normalised SRP a lone, coherent source at the accepted direction gives at `d`:
+        // the mean over pairs of the band kernel at the difference of their lags.
+        let lobe = |pos: &dyn Fn(usize) -> f64, a: &[f64]| -> f64 {
+            let sum: f64 = (0..np)
+                .map(|q| lerp(&self.kernel, (pos(q) - a[q]).abs().min(last)))
+                .sum();
+            sum / np as f64
+        };
+        let limit = self.lobe_limit;
+        self.accepted_at.chunks_exact(np).any(|a| match at {
+            Some(idx) => lobe(&|q| f64::from(idx[q]), a) > limit,
+            None => lobe(&|q| self.zeros[q] + self.pair_steps[q].dot(d), a) > limit,
+        })
+    }
+
+    /// Stores the table positions of the accepted directions' lags for `excluded`.
+    fn locate_accepted(&mut self, accepted: &[Vec3]) {
+        self.accepted_at.clear();
+        for a in accepted {
+            for (v, z) in self.pair_steps.iter().zip(&self.zeros) {
+                self.accepted_at.push(z + v.dot(a));
             }
         }
     }
@@ -343,6 +392,8 @@ impl DirectionSearch {
         for (w, out) in self.widths.iter().zip(self.filtered.iter_mut()) {
             bank.max_filter(w, out, &mut self.work);
         }
+        self.locate_accepted(accepted);
+        let np = self.pair_steps.len();
         let last = self.levels.len() - 1;
         let table_of = |l: usize| -> &[f64] {
             if l < last {
@@ -354,11 +405,12 @@ impl DirectionSearch {
         let level0 = &self.levels[0];
         let mut best: Option<(usize, f64)> = None;
         for p in 0..level0.dirs.len() {
-            if self.excluded(&level0.dirs[p], accepted, exclusion) {
-                continue;
-            }
+            // The exclusion test costs as much as the SRP: only run it on a new best.
             let v = self.srp_at(table_of(0), level0, p);
-            if best.is_none_or(|(_, b)| v > b) {
+            let at = &level0.idx[p * np..(p + 1) * np];
+            if best.is_none_or(|(_, b)| v > b)
+                && !self.excluded(&level0.dirs[p], Some(at), accepted, exclusion)
+            {
                 best = Some((p, v));
             }
         }
@@ -370,11 +422,11 @@ impl DirectionSearch {
             let mut best: Option<(usize, f64)> = None;
             for cell in cells {
                 for &c in &coarse.children[cell] {
-                    if self.excluded(&fine.dirs[c], accepted, exclusion) {
-                        continue;
-                    }
                     let v = self.srp_at(table_of(l), fine, c);
-                    if best.is_none_or(|(_, b)| v > b) {
+                    let at = &fine.idx[c * np..(c + 1) * np];
+                    if best.is_none_or(|(_, b)| v > b)
+                        && !self.excluded(&fine.dirs[c], Some(at), accepted, exclusion)
+                    {
                         best = Some((c, v));
                     }
                 }
@@ -390,6 +442,21 @@ impl DirectionSearch {
         let start = self.levels[level_of_prev].dirs[prev];
         let (d, power) = self.refine(&bank.table, start, accepted, exclusion);
         Some((self.representative(d), power))
+    }
+
+    /// Re-maximises the SRP from `start` by the local pattern search alone: a candidate
+    /// re-estimated once the other candidates' bins are masked. Returns it (representative
+    /// direction for linear arrays) with its normalised SRP.
+    pub fn polish(
+        &mut self,
+        bank: &GccBank,
+        start: Vec3,
+        accepted: &[Vec3],
+        exclusion: f64,
+    ) -> (Vec3, f64) {
+        self.locate_accepted(accepted);
+        let (d, power) = self.refine(&bank.table, start, accepted, exclusion);
+        (self.representative(d), power)
     }
 
     /// Pattern search on the tangent plane: try 8 neighbours at the current step, move to the
@@ -421,11 +488,11 @@ impl DirectionSearch {
             let mut next = None;
             for (u, v) in OFFSETS {
                 let cand = self.fold((d + (e1 * u + e2 * v) * step).normalize());
-                if !self.allowed(&cand) || self.excluded(&cand, accepted, exclusion) {
-                    continue;
-                }
                 let val = self.srp_dir(table, &cand);
-                if val > best {
+                if val > best
+                    && self.allowed(&cand)
+                    && !self.excluded(&cand, None, accepted, exclusion)
+                {
                     best = val;
                     next = Some(cand);
                 }
@@ -453,10 +520,11 @@ impl DirectionSearch {
         }
     }
 
-    /// Far-field TDOAs (seconds) of every pair for direction `d`.
-    pub fn tdoas(&self, d: &Vec3, steps_per_second: f64, out: &mut [f64]) {
-        for (o, v) in out.iter_mut().zip(&self.pair_steps) {
-            *o = v.dot(d) / steps_per_second;
+    /// Far-field arrival times (seconds, relative to the centroid) at every microphone of a
+    /// plane wave from direction `d`.
+    pub fn delays(&self, d: &Vec3, out: &mut [f64]) {
+        for (o, m) in out.iter_mut().zip(&self.mic_offsets) {
+            *o = -m.dot(d);
         }
     }
 

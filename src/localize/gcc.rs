@@ -21,8 +21,6 @@ use crate::geometry::MicArray;
 const SINC_TAPS: usize = 8;
 /// Kaiser window shape of the interpolation kernel.
 const KAISER_BETA: f64 = 8.0;
-/// Ridge added to the kernel Gram matrix of a joint removal (the kernel is 1 at zero lag).
-const JOINT_RIDGE: f64 = 0.05;
 /// Extra lag range (samples) tabulated beyond d_ab / c, so lookups at the physical limit interpolate.
 const LAG_MARGIN_SAMPLES: f64 = 1.0;
 
@@ -50,13 +48,14 @@ pub(crate) fn lerp(table: &[f64], pos: f64) -> f64 {
 
 /// How the GCC tables are computed (from the localiser configuration).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct GccSettings<'a> {
+pub(crate) struct GccSettings {
     /// Fine table steps per sample of lag.
     pub interpolation: usize,
     /// PHAT exponent beta: bins are divided by |Y|^beta.
     pub beta: f64,
-    /// Weights of the current frame's cross-spectra and of the past frames' (most recent first).
-    pub smoothing: &'a [f64],
+    /// The smoothed cross-spectrum is this frame's plus `smoothing` times the previous smoothed
+    /// one (0: none).
+    pub smoothing: f64,
 }
 
 /// GCC-PHAT tables of all pairs of one array, with the buffers to compute them in place.
@@ -70,7 +69,8 @@ pub(crate) struct GccBank {
     /// Fine table steps per second of lag (interpolation * sample rate).
     pub steps_per_second: f64,
     interpolation: usize,
-    band: (usize, usize),
+    /// Inclusive range of the FFT bins used.
+    pub band: (usize, usize),
     channels: Vec<usize>,
     white: Vec<Complex>,
     /// |W| of every whitened bin (|Y|^(1 - beta)), channel-major like `white`.
@@ -81,16 +81,23 @@ pub(crate) struct GccBank {
     beta: f64,
     /// Variance of the normalised SRP of incoherent signals in the current frame.
     null_var: f64,
+    /// `null_var` of the tables as computed.
+    pristine_null_var: f64,
     cross: Vec<Complex>,
-    /// Cross-spectra of the band bins of the current frame and the past ones, most recent first,
-    /// each pair-major; empty when the frames are not smoothed.
-    history: Vec<Vec<Complex>>,
-    /// Sum over band bins of |W_a| |W_b| (and of its square) per pair for each frame of `history`.
-    history_norms: Vec<Vec<(f64, f64)>>,
-    /// How many past frames of `history` hold data.
-    history_len: usize,
-    /// Weights of the current frame and of the past ones in the smoothed cross-spectrum.
-    smooth_weights: Vec<f64>,
+    /// The band's smoothed cross-spectra, pair-major: sum over the frames since the last
+    /// `forget` of decay^age times the frame's whitened cross-spectrum.
+    pub smoothed: Vec<Complex>,
+    /// Per pair and band bin: the same sum of |W_a| |W_b|, the most a bin's smoothed
+    /// cross-spectrum can reach.
+    norm1: Vec<f64>,
+    /// Per pair and band bin: the sum of (decay^age |W_a| |W_b|)^2.
+    norm2: Vec<f64>,
+    /// Per band bin: `norm1` summed over the pairs.
+    pub bin_norm: Vec<f64>,
+    /// Weight of the previous smoothed cross-spectra in this frame's.
+    decay: f64,
+    /// Whether the smoothed cross-spectra hold nothing to carry over (start, or after `forget`).
+    fresh: bool,
     time: Vec<f64>,
     lags: Vec<f64>,
     kernels: Vec<f64>,
@@ -100,7 +107,8 @@ pub(crate) struct GccBank {
     irfft: Arc<dyn ComplexToReal<f64>>,
     scratch: Vec<Complex>,
     window_power: f64,
-    frame: usize,
+    /// FFT length (samples).
+    pub frame: usize,
 }
 
 /// Zeroth-order modified Bessel function of the first kind (power series).
@@ -159,7 +167,7 @@ impl GccBank {
         let GccSettings {
             interpolation,
             beta,
-            smoothing: smooth_weights,
+            smoothing: decay,
         } = settings;
         let mut pairs = Vec::new();
         let mut offset = 0;
@@ -171,12 +179,6 @@ impl GccBank {
         }
         let max_half = pairs.iter().map(|p| p.half).max().unwrap_or(0);
         let npairs = pairs.len();
-        // The current frame and the past ones, when there are past ones to add.
-        let stored = if smooth_weights.len() > 1 {
-            smooth_weights.len()
-        } else {
-            0
-        };
         let lag_span = max_half / interpolation + 2 + SINC_TAPS;
         // kernels[r * 2K + i] weights integer lag (n0 - K + 1 + i) for the fraction r / I.
         let mut kernels = Vec::with_capacity(interpolation * 2 * SINC_TAPS);
@@ -207,15 +209,14 @@ impl GccBank {
             bin_power: vec![0.0; nb],
             beta,
             null_var: 0.0,
+            pristine_null_var: 0.0,
             cross: vec![Complex::new(0.0, 0.0); frame / 2 + 1],
-            history: vec![vec![Complex::new(0.0, 0.0); nb * npairs]; stored],
-            history_norms: vec![vec![(0.0, 0.0); npairs]; stored],
-            history_len: 0,
-            smooth_weights: if smooth_weights.is_empty() {
-                vec![1.0]
-            } else {
-                smooth_weights.to_vec()
-            },
+            smoothed: vec![Complex::new(0.0, 0.0); nb * npairs],
+            norm1: vec![0.0; nb * npairs],
+            norm2: vec![0.0; nb * npairs],
+            bin_norm: vec![0.0; nb],
+            decay,
+            fresh: true,
             time: vec![0.0; frame],
             lags: vec![0.0; 2 * lag_span + 1],
             kernels,
@@ -234,9 +235,9 @@ impl GccBank {
         self.null_var.sqrt()
     }
 
-    /// Number of pairs.
-    pub fn len(&self) -> usize {
-        self.pairs.len()
+    /// The band's PHAT kernel at fine lag offsets 0, 1, ... (one per table step).
+    pub fn kernel(&self) -> &[f64] {
+        &self.kernel
     }
 
     /// Whitens the band bins of the array's channels and returns the mean in-band power per
@@ -301,65 +302,86 @@ impl GccBank {
         }
     }
 
-    /// Computes every pair's fine GCC table from the whitened spectra. Each pair's GCC is
-    /// normalised by the sum over bins of |W_a| |W_b|, so it lies in [-1, 1] and equals 1 for a
-    /// perfectly coherent pair whatever the exponent.
+    /// Computes every pair's smoothed cross-spectrum and fine GCC table from the whitened
+    /// spectra. Each pair's GCC is normalised by the sum over bins of |W_a| |W_b|, so it lies in
+    /// [-1, 1] and equals 1 for a perfectly coherent pair whatever the exponent.
     pub fn compute(&mut self) {
+        self.smooth();
+        self.tabulate(None);
+        self.pristine.copy_from_slice(&self.table);
+        self.pristine_null_var = self.null_var;
+    }
+
+    /// Adds this frame's whitened cross-spectra to the band's smoothed ones (recursively: the
+    /// previous sum decays by `decay`), and the same for their per-bin norms.
+    fn smooth(&mut self) {
+        let nb = self.band.1 + 1 - self.band.0;
+        // A fresh start carries nothing over.
+        let (lam, lam2) = if self.fresh {
+            (0.0, 0.0)
+        } else {
+            (self.decay, self.decay * self.decay)
+        };
+        self.bin_norm.fill(0.0);
+        for (q, p) in self.pairs.iter().enumerate() {
+            let range = q * nb..(q + 1) * nb;
+            let (wa, wb) = (
+                &self.white[p.a * nb..(p.a + 1) * nb],
+                &self.white[p.b * nb..(p.b + 1) * nb],
+            );
+            let (ma, mb) = (
+                &self.mags[p.a * nb..(p.a + 1) * nb],
+                &self.mags[p.b * nb..(p.b + 1) * nb],
+            );
+            let smoothed = &mut self.smoothed[range.clone()];
+            let n1 = &mut self.norm1[range.clone()];
+            let n2 = &mut self.norm2[range];
+            // The phase of a source that keeps its place adds up over the frames, that of
+            // reverberation and noise does not.
+            for k in 0..nb {
+                let m = ma[k] * mb[k];
+                smoothed[k] = wa[k] * wb[k].conj() + smoothed[k] * lam;
+                n1[k] = m + lam * n1[k];
+                n2[k] = m * m + lam2 * n2[k];
+            }
+            for (b, n) in self.bin_norm.iter_mut().zip(n1.iter()) {
+                *b += n;
+            }
+        }
+        self.fresh = false;
+    }
+
+    /// Computes every pair's fine GCC table from the smoothed cross-spectra, each band bin
+    /// weighted by `mask` (all ones when `None`), and the null variance that goes with it.
+    pub fn tabulate(&mut self, mask: Option<&[f64]>) {
         let nb = self.band.1 + 1 - self.band.0;
         let interp = self.interpolation as isize;
         let taps = 2 * SINC_TAPS;
         let lag_span = (self.lags.len() / 2) as isize;
         let n = self.frame as isize;
         let mut null_var = 0.0;
-        // The oldest stored frame makes room for this one.
-        if !self.history.is_empty() {
-            self.history.rotate_right(1);
-            self.history_norms.rotate_right(1);
-        }
-        let past = self.history_len.min(self.history.len().saturating_sub(1));
-        let w0 = self.smooth_weights[0];
         for (q, p) in self.pairs.iter().enumerate() {
-            self.cross.fill(Complex::new(0.0, 0.0));
-            let wa = &self.white[p.a * nb..(p.a + 1) * nb];
-            let wb = &self.white[p.b * nb..(p.b + 1) * nb];
-            let (ma, mb) = (
-                &self.mags[p.a * nb..(p.a + 1) * nb],
-                &self.mags[p.b * nb..(p.b + 1) * nb],
+            let range = q * nb..(q + 1) * nb;
+            let (smoothed, n1, n2) = (
+                &self.smoothed[range.clone()],
+                &self.norm1[range.clone()],
+                &self.norm2[range],
             );
-            let (mut s1, mut s2) = (0.0, 0.0);
-            for (x, y) in ma.iter().zip(mb) {
-                let w = x * y;
-                s1 += w;
-                s2 += w * w;
-            }
-            for ((c, x), y) in self.cross[self.band.0..=self.band.1]
-                .iter_mut()
-                .zip(wa)
-                .zip(wb)
-            {
-                *c = x * y.conj();
-            }
-            if let Some(newest) = self.history.first_mut() {
-                newest[q * nb..(q + 1) * nb]
-                    .copy_from_slice(&self.cross[self.band.0..=self.band.1]);
-                self.history_norms[0][q] = (s1, s2);
-            }
-            // Past frames add their cross-spectra with their weights: the phase of a source
-            // that keeps its place adds up, that of reverberation and noise does not.
-            let (mut t1, mut t2) = (w0 * s1, w0 * w0 * s2);
-            if past > 0 {
-                for c in &mut self.cross[self.band.0..=self.band.1] {
-                    *c *= w0;
-                }
-                for i in 1..=past {
-                    let w = self.smooth_weights[i];
-                    let old = &self.history[i][q * nb..(q + 1) * nb];
-                    for (c, o) in self.cross[self.band.0..=self.band.1].iter_mut().zip(old) {
-                        *c += o * w;
+            self.cross.fill(Complex::new(0.0, 0.0));
+            let band = &mut self.cross[self.band.0..=self.band.1];
+            let (mut t1, mut t2) = (0.0, 0.0);
+            match mask {
+                Some(g) => {
+                    for k in 0..nb {
+                        band[k] = smoothed[k] * g[k];
+                        t1 += g[k] * n1[k];
+                        t2 += g[k] * g[k] * n2[k];
                     }
-                    let (a1, a2) = self.history_norms[i][q];
-                    t1 += w * a1;
-                    t2 += w * w * a2;
+                }
+                None => {
+                    band.copy_from_slice(smoothed);
+                    t1 = n1.iter().sum();
+                    t2 = n2.iter().sum();
                 }
             }
             // Each bin adds a cosine of uniform phase (variance w^2 / 2) under incoherence.
@@ -369,10 +391,6 @@ impl GccBank {
             } else {
                 0.0
             };
-            // A real signal's DC and Nyquist bins are real; the band never needs their imaginary parts.
-            self.cross[0].im = 0.0;
-            let last = self.cross.len() - 1;
-            self.cross[last].im = 0.0;
             // Lengths are fixed at construction, so the transform cannot fail.
             let _ =
                 self.irfft
@@ -397,90 +415,19 @@ impl GccBank {
             }
             table[2 * p.half + 1] = table[2 * p.half];
         }
-        self.history_len = (self.history_len + 1).min(self.history.len().saturating_sub(1));
-        self.pristine.copy_from_slice(&self.table);
         let np = self.pairs.len().max(1) as f64;
         self.null_var = null_var / (np * np);
     }
 
     /// Forgets the past frames' cross-spectra (after silence, or when the input jumps).
     pub fn forget(&mut self) {
-        self.history_len = 0;
+        self.fresh = true;
     }
 
-    /// Restores the tables as computed, undoing every removal.
+    /// Restores the tables as computed, undoing every removal and mask.
     pub fn restore(&mut self) {
         self.table.copy_from_slice(&self.pristine);
-    }
-
-    /// Removes a found source before the next search (CLEAN): subtracts from each pair's GCC the
-    /// GCC a lone source at lag `tdoa_s[q]` would give, alpha * K(tau - tdoa), with alpha the
-    /// pair's GCC at that lag and K the band's PHAT kernel, within `half_width_s` of the lag.
-    /// Other sources keep their peaks unless their lags nearly coincide; zeroing a window
-    /// instead would wipe most of a small array's short lag range.
-    pub fn remove(&mut self, tdoa_s: &[f64], half_width_s: f64) {
-        let w = half_width_s * self.steps_per_second;
-        for (q, p) in self.pairs.iter().enumerate() {
-            let end = 2 * p.half;
-            let centre = (p.half as f64 + tdoa_s[q] * self.steps_per_second).clamp(0.0, end as f64);
-            let table = &mut self.table[p.offset..p.offset + end + 2];
-            let alpha = lerp(table, centre).max(0.0);
-            let lo = (centre - w).ceil().max(0.0) as usize;
-            let hi = ((centre + w).floor() as usize).min(end);
-            for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                *t -= alpha * lerp(&self.kernel, (j as f64 - centre).abs());
-            }
-            table[end + 1] = table[end];
-        }
-    }
-
-    /// Removes the sources at `tdoa_s` (source-major, one TDOA per pair, seconds) from the tables
-    /// as computed, except source `keep`: for each pair, the amplitudes of all the sources are
-    /// fitted jointly, GCC(tau_i) = sum_j alpha_j K(tau_i - tau_j), so that a source whose lag
-    /// sits on another's lobe is not over-subtracted (on a small array the kernel's main lobe
-    /// spans most of the lag range). Each subtraction reaches `half_width_s` around its lag.
-    pub fn remove_jointly(&mut self, tdoa_s: &[Vec<f64>], keep: Option<usize>, half_width_s: f64) {
-        self.table.copy_from_slice(&self.pristine);
-        let n = tdoa_s.len();
-        if n == 0 {
-            return;
-        }
-        let w = half_width_s * self.steps_per_second;
-        let mut centres = vec![0.0; n];
-        let mut gram = nalgebra::DMatrix::<f64>::zeros(n, n);
-        let mut rhs = nalgebra::DVector::<f64>::zeros(n);
-        for (q, p) in self.pairs.iter().enumerate() {
-            let end = 2 * p.half;
-            for (c, t) in centres.iter_mut().zip(tdoa_s) {
-                *c = (p.half as f64 + t[q] * self.steps_per_second).clamp(0.0, end as f64);
-            }
-            let table = &mut self.table[p.offset..p.offset + end + 2];
-            for i in 0..n {
-                rhs[i] = lerp(table, centres[i]);
-                for j in 0..n {
-                    gram[(i, j)] = lerp(&self.kernel, (centres[i] - centres[j]).abs());
-                }
-                // A little ridge keeps coinciding lags from blowing the amplitudes up.
-                gram[(i, i)] += JOINT_RIDGE;
-            }
-            let alpha = gram
-                .clone()
-                .cholesky()
-                .map(|c| c.solve(&rhs))
-                .unwrap_or_else(|| rhs.clone());
-            for (i, &c) in centres.iter().enumerate() {
-                let a = alpha[i].max(0.0);
-                if Some(i) == keep || !a.is_finite() || a == 0.0 {
-                    continue;
-                }
-                let lo = (c - w).ceil().max(0.0) as usize;
-                let hi = ((c + w).floor() as usize).min(end);
-                for (j, t) in table.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                    *t -= a * lerp(&self.kernel, (j as f64 - c).abs());
-                }
-            }
-            table[end + 1] = table[end];
-        }
+        self.null_var = self.pristine_null_var;
     }
 
     /// Writes into `out` (same layout as `table`) each pair's table max-filtered over
@@ -562,4 +509,60 @@ pub(crate) fn direct_gcc(
         acc += (c * Complex::from_polar(1.0, omega * tau_samples)).re;
     }
     acc / nb as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::localize::synth;
+
+    const FS: f64 = 16000.0;
+    const C: f64 = 343.0;
+
+    #[test]
+    fn sliding_max_matches_brute_force() {
+        let array = MicArray::new(
+            "a",
+            vec![Vec3::zeros(), Vec3::new(0.3, 0.0, 0.0)],
+            vec![0, 1],
+        )
+        .unwrap();
+        let sig = synth::white(4096, 9);
+        let x = synth::render(
+            &array.mics,
+            &[(Vec3::new(1.0, 1.0, 0.0), &sig)],
+            FS,
+            C,
+            None,
+            0.3,
+            4,
+        );
+        let mut bank = GccBank::new(
+            &array,
+            2048,
+            (128, 256),
+            GccSettings {
+                interpolation: 10,
+                beta: 1.0,
+                smoothing: 0.0,
+            },
+            FS,
+            C,
+        );
+        bank.whiten(&synth::spectra_at(&x, 0, 2048));
+        bank.compute();
+        let len = bank.table.len();
+        for w in [0usize, 1, 3, 17, 200] {
+            let mut out = vec![0.0; len];
+            let mut work = vec![0.0; 2 * len];
+            bank.max_filter(&[w], &mut out, &mut work);
+            for (i, got) in out.iter().enumerate() {
+                let lo = i.saturating_sub(w);
+                let hi = (i + w).min(len - 1);
+                let m = bank.table[lo..=hi].iter().copied().fold(f64::MIN, f64::max);
+                assert_eq!(*got, m, "w {w} i {i}");
+            }
+        }
+    }
 }

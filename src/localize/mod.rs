@@ -1,7 +1,8 @@
 //! The acoustic localiser: GCC-PHAT per microphone pair, SRP-PHAT by table look-up, a
 //! hierarchical geodesic-sphere search for directions and stochastic region contraction for 3-D
-//! positions, several sources per frame by removing each found source from the GCCs, and a
-//! per-frame voice-activity score.
+//! positions, several sources per frame by masking the sub-bands each found source dominates
+//! (`masking`) and recomputing the GCCs before the next search, and a per-frame voice-activity
+//! score.
 //!
 //! Pairs never cross arrays: each array is localised on its own (spec 000 section 2.6) and the
 //! tracker fuses the arrays.
@@ -11,6 +12,7 @@ mod config;
 mod directions;
 mod gcc;
 mod geodesic;
+mod masking;
 mod noise_floor;
 mod region_contraction;
 #[cfg(test)]
@@ -29,6 +31,7 @@ pub use config::{
 use activity::ActivityTracker;
 use directions::DirectionSearch;
 use gcc::{GccBank, GccSettings};
+use masking::SubbandMask;
 use noise_floor::BinNoiseFloor;
 use region_contraction::PositionSearch;
 
@@ -87,11 +90,12 @@ struct ArrayState {
     searches: Option<Searches>,
     activity: ActivityTracker,
     floor: BinNoiseFloor,
-    tdoas: Vec<f64>,
     found: Vec<Vec3>,
     powers: Vec<f64>,
-    /// Per-pair TDOAs of every direction candidate found so far in the frame.
-    found_tdoas: Vec<Vec<f64>>,
+    /// Which sub-bands the candidates found so far dominate, and the mask removing them.
+    mask: SubbandMask,
+    /// Arrival times at the microphones of the candidate being removed.
+    delays: Vec<f64>,
 }
 
 /// The localiser stage: one state per array, no I/O, no threads, no clocks.
@@ -175,7 +179,7 @@ impl Localizer {
             GccSettings {
                 interpolation: self.cfg.interpolation,
                 beta: self.cfg.phat_exponent,
-                smoothing: &self.cfg.smoothing_weights(),
+                smoothing: self.cfg.smoothing_decay,
             },
             self.sample_rate,
             c,
@@ -187,6 +191,7 @@ impl Localizer {
                 layout.region,
                 &self.cfg.directions.levels,
                 self.cfg.directions.refine_step_deg.to_radians(),
+                self.cfg.peaks.exclusion_lobe,
                 c,
             );
             let positions = PositionSearch::new(
@@ -205,11 +210,17 @@ impl Localizer {
         ArrayState {
             index,
             channels: array.channels.clone(),
-            tdoas: vec![0.0; bank.len()],
             floor: BinNoiseFloor::new(bank.bin_power.len(), self.cfg.activity.noise_window_frames),
             found: Vec::with_capacity(self.cfg.max_candidates),
             powers: Vec::with_capacity(self.cfg.max_candidates),
-            found_tdoas: Vec::with_capacity(self.cfg.max_candidates),
+            mask: SubbandMask::new(
+                &bank,
+                self.cfg.peaks.subband_bins,
+                self.cfg.peaks.power_iterations,
+                self.cfg.peaks.mask_exponent,
+                self.sample_rate,
+            ),
+            delays: vec![0.0; array.len()],
             bank,
             searches,
             activity,
@@ -229,8 +240,6 @@ impl Localizer {
                 "localiser: spectra do not match the frame size or the layout's channels"
             );
         }
-        let bin_hz = self.sample_rate / self.cfg.frame as f64;
-        let band_width_hz = (self.band.1 - self.band.0) as f64 * bin_hz;
         let mut out = Vec::with_capacity(self.arrays.len());
         for state in &mut self.arrays {
             let mut obs = ArrayObservation {
@@ -240,14 +249,7 @@ impl Localizer {
                 activity: 0.0,
             };
             if shape_ok {
-                process_array(
-                    state,
-                    spectra,
-                    &self.cfg,
-                    band_width_hz,
-                    &mut self.rng,
-                    &mut obs,
-                );
+                process_array(state, spectra, &self.cfg, &mut self.rng, &mut obs);
             }
             out.push(obs);
         }
@@ -255,30 +257,36 @@ impl Localizer {
     }
 }
 
-/// Decides whether a search result is accepted as a candidate.
+/// Decides whether a search result is accepted as a candidate, against the statistics of the
+/// map it was found in (after the removal of the candidates before it).
 struct Acceptance {
     min_power: f64,
     relative: f64,
-    prominence: f64,
+    /// The least power a peak needs: the map's coarse-grid mean plus the prominence.
+    floor: f64,
     first: Option<f64>,
 }
 
 impl Acceptance {
-    fn new(cfg: &PeakConfig, null_std: f64) -> Self {
+    fn new(cfg: &PeakConfig, null_std: f64, map_mean: f64) -> Self {
         Self {
             min_power: cfg.min_power,
             relative: cfg.relative_power,
-            prominence: cfg.prominence_sigmas * null_std,
+            floor: map_mean + cfg.prominence_sigmas * null_std,
             first: None,
         }
     }
 
-    /// Whether a peak of `power` found in a map (after the removal of the sources accepted so
-    /// far) whose coarse-grid mean is `map_mean` is a source.
-    fn accepts(&mut self, power: f64, map_mean: f64) -> bool {
+    /// Moves the floor to a new map (after a removal), whose null spread and mean differ.
+    fn rescale(&mut self, cfg: &PeakConfig, null_std: f64, map_mean: f64) {
+        self.floor = map_mean + cfg.prominence_sigmas * null_std;
+    }
+
+    /// Whether a peak of `power` is a source.
+    fn accepts(&mut self, power: f64) -> bool {
         let ok = power.is_finite()
             && power >= self.min_power
-            && power >= map_mean + self.prominence
+            && power >= self.floor
             && self.first.is_none_or(|f| power >= self.relative * f);
         if ok && self.first.is_none() {
             self.first = Some(power);
@@ -291,7 +299,6 @@ fn process_array(
     state: &mut ArrayState,
     spectra: &MultiSpectrum,
     cfg: &LocalizerConfig,
-    band_width_hz: f64,
     rng: &mut ChaCha8Rng,
     obs: &mut ArrayObservation,
 ) {
@@ -316,68 +323,120 @@ fn process_array(
     if obs.activity < cfg.activity.min_activity {
         return;
     }
-    let removal = cfg.peaks.removal_width / band_width_hz;
-    let exclusion = cfg.peaks.exclusion_angle_deg.to_radians();
-    let sps = bank.steps_per_second;
-    let found = &mut state.found;
     if cfg.search.directions() {
-        let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
-        let mut map_mean = stats.mean;
-        found.clear();
-        state.powers.clear();
-        let lags = &mut state.found_tdoas;
-        lags.clear();
-        while found.len() < cfg.max_candidates {
-            if !found.is_empty() {
-                map_mean = searches.directions.grid_stats(bank).mean;
-            }
-            let Some((d, p)) = searches.directions.search(bank, found, exclusion) else {
-                break;
-            };
-            if !accept.accepts(p, map_mean) {
-                break;
-            }
-            found.push(d);
-            state.powers.push(p);
-            let mut tdoas = vec![0.0; bank.len()];
-            searches.directions.tdoas(&d, sps, &mut tdoas);
-            lags.push(tdoas);
-            // All found sources are removed together, with amplitudes fitted jointly.
-            bank.remove_jointly(lags, None, removal);
-        }
-        for (d, &p) in found.iter().zip(&state.powers) {
-            obs.doas.push(DirectionCandidate {
-                direction: *d,
-                azimuth: azimuth_of(d),
-                elevation: elevation_of(d),
-                power: p,
-            });
-        }
-        bank.restore();
+        find_directions(state, cfg, stats.mean, obs);
     }
     if cfg.search.positions() {
-        let mut accept = Acceptance::new(&cfg.peaks, bank.null_std());
-        let mut map_mean = stats.mean;
-        found.clear();
-        while found.len() < cfg.max_candidates {
-            if !found.is_empty() {
-                map_mean = searches.directions.grid_stats(bank).mean;
-            }
-            let pull = cfg.positions.centre_pull * bank.null_std();
-            let Some((x, p)) = searches.positions.search(bank, found, rng, pull) else {
-                break;
-            };
-            if !accept.accepts(p, map_mean) {
-                break;
-            }
-            searches.positions.tdoas(&x, sps, &mut state.tdoas);
-            bank.remove(&state.tdoas, removal);
-            found.push(x);
-            obs.points.push(PositionCandidate {
-                position: x,
-                power: p,
-            });
-        }
-        bank.restore();
+        find_positions(state, cfg, stats.mean, rng, obs);
     }
+}
+
+/// Direction candidates of one frame: the strongest direction, then the strongest once the
+/// sub-bands of the ones found are masked, until a peak fails the acceptance; then each
+/// candidate is re-estimated with the others masked.
+fn find_directions(
+    state: &mut ArrayState,
+    cfg: &LocalizerConfig,
+    grid_mean: f64,
+    obs: &mut ArrayObservation,
+) {
+    let Some(searches) = state.searches.as_mut() else {
+        return;
+    };
+    let bank = &mut state.bank;
+    let search = &mut searches.directions;
+    let exclusion = cfg.peaks.exclusion_angle_deg.to_radians();
+    let mut accept = Acceptance::new(&cfg.peaks, bank.null_std(), grid_mean);
+    let found = &mut state.found;
+    found.clear();
+    state.powers.clear();
+    state.mask.start(bank);
+    while found.len() < cfg.max_candidates {
+        let Some((d, p)) = search.search(bank, found, exclusion) else {
+            break;
+        };
+        if !accept.accepts(p) {
+            break;
+        }
+        found.push(d);
+        state.powers.push(p);
+        search.delays(&d, &mut state.delays);
+        state.mask.add(&state.delays);
+        if found.len() < cfg.max_candidates {
+            state.mask.apply(bank, None);
+            accept.rescale(&cfg.peaks, bank.null_std(), search.grid_stats(bank).mean);
+        }
+    }
+    // Each candidate was found with the ones before it removed but not the ones after it,
+    // whose lobes pull it towards them: re-estimate each with all the others removed. The last
+    // one found already had all the others removed (up to their own small moves here).
+    if found.len() >= 2 {
+        let mut others = Vec::with_capacity(found.len());
+        for _ in 0..cfg.peaks.joint_passes {
+            for i in 0..found.len() - 1 {
+                state.mask.apply(bank, Some(i));
+                others.clear();
+                others.extend((0..found.len()).filter(|&j| j != i).map(|j| found[j]));
+                let (d, p) = search.polish(bank, found[i], &others, exclusion);
+                found[i] = d;
+                state.powers[i] = p;
+                search.delays(&d, &mut state.delays);
+                state.mask.set(i, &state.delays);
+            }
+        }
+    }
+    for (d, &p) in found.iter().zip(&state.powers) {
+        obs.doas.push(DirectionCandidate {
+            direction: *d,
+            azimuth: azimuth_of(d),
+            elevation: elevation_of(d),
+            power: p,
+        });
+    }
+    bank.restore();
+}
+
+/// Position candidates of one frame, found and removed as the directions are (without the
+/// re-estimation: the stochastic search would cost as much again).
+fn find_positions(
+    state: &mut ArrayState,
+    cfg: &LocalizerConfig,
+    grid_mean: f64,
+    rng: &mut ChaCha8Rng,
+    obs: &mut ArrayObservation,
+) {
+    let Some(searches) = state.searches.as_mut() else {
+        return;
+    };
+    let bank = &mut state.bank;
+    let sps = bank.steps_per_second;
+    let mut accept = Acceptance::new(&cfg.peaks, bank.null_std(), grid_mean);
+    let found = &mut state.found;
+    found.clear();
+    state.mask.start(bank);
+    while found.len() < cfg.max_candidates {
+        let pull = cfg.positions.centre_pull * bank.null_std();
+        let Some((x, p)) = searches.positions.search(bank, found, rng, pull) else {
+            break;
+        };
+        if !accept.accepts(p) {
+            break;
+        }
+        found.push(x);
+        obs.points.push(PositionCandidate {
+            position: x,
+            power: p,
+        });
+        if found.len() < cfg.max_candidates {
+            searches.positions.delays(&x, sps, &mut state.delays);
+            state.mask.add(&state.delays);
+            state.mask.apply(bank, None);
+            accept.rescale(
+                &cfg.peaks,
+                bank.null_std(),
+                searches.directions.grid_stats(bank).mean,
+            );
+        }
+    }
+    bank.restore();
 }

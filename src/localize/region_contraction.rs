@@ -318,11 +318,11 @@ impl PositionSearch {
             .unwrap_or((x, v))
     }
 
-    /// Near-field TDOAs (seconds) of every pair for a source at `x`.
-    pub fn tdoas(&self, x: &Vec3, steps_per_second: f64, out: &mut [f64]) {
+    /// Times of flight (seconds) from a source at `x` to every microphone.
+    pub fn delays(&self, x: &Vec3, steps_per_second: f64, out: &mut [f64]) {
         let per_metre = self.steps_per_metre / steps_per_second;
-        for (o, &(a, b, _)) in out.iter_mut().zip(&self.pairs) {
-            *o = ((x - self.mics[a]).norm() - (x - self.mics[b]).norm()) * per_metre;
+        for (o, m) in out.iter_mut().zip(&self.mics) {
+            *o = (x - m).norm() * per_metre;
         }
     }
 }

@@ -7,7 +7,7 @@ use crate::geometry::{angle_diff, deg, direction_from_angles, rad};
 const FS: f64 = 16000.0;
 const C: f64 = 343.0;
 
-fn settings(smoothing: &[f64]) -> gcc::GccSettings<'_> {
+fn settings(smoothing: f64) -> gcc::GccSettings {
     gcc::GccSettings {
         interpolation: 10,
         beta: 1.0,
@@ -47,7 +47,7 @@ fn gcc_peaks_at_tau_a_minus_tau_b() {
         let sig = synth::white(8192, 3);
         let x = synth::render(&array.mics, &[(src, &sig)], FS, C, None, 0.0, 1);
         let spectra = synth::spectra_at(&x, 2048, 2048);
-        let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), settings(&[1.0]), FS, C);
+        let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), settings(0.0), FS, C);
         bank.whiten(&spectra);
         bank.compute();
         let p = bank.pairs[0];
@@ -66,7 +66,7 @@ fn gcc_peaks_at_tau_a_minus_tau_b() {
 
 #[test]
 fn smoothed_cross_spectra_weigh_past_frames_and_forget_them() {
-    // Frame 1 has a source at one lag, frame 2 one at another: with weights [1, 0.5] the GCC of
+    // Frame 1 has a source at one lag, frame 2 one at another: with decay 0.5 the GCC of
     // frame 2 is 2/3 of a coherent peak at the new lag and 1/3 at the old one; after forget()
     // only the new lag remains.
     let array = MicArray::new(
@@ -88,7 +88,7 @@ fn smoothed_cross_spectra_weigh_past_frames_and_forget_them() {
             p.offset as f64 + p.half as f64 + array.tdoa(src, 0, 1, C) * bank.steps_per_second;
         gcc::lerp(&bank.table, pos)
     };
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 640), settings(&[1.0, 0.5]), FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, (128, 640), settings(0.5), FS, C);
     bank.whiten(&f1);
     bank.compute();
     assert!(at(&bank, &s1) > 0.95);
@@ -123,7 +123,7 @@ fn interpolated_gcc_matches_the_exact_band_sum() {
     );
     let spectra = synth::spectra_at(&x, 1024, 2048);
     let band = (128, 320);
-    let mut bank = gcc::GccBank::new(&array, 2048, band, settings(&[1.0]), FS, C);
+    let mut bank = gcc::GccBank::new(&array, 2048, band, settings(0.0), FS, C);
     bank.whiten(&spectra);
     bank.compute();
     let white = |ch: usize| -> Vec<crate::dsp::Complex> {
@@ -139,136 +139,6 @@ fn interpolated_gcc_matches_the_exact_band_sum() {
         let exact = gcc::direct_gcc(&wa, &wb, band, 2048, tau);
         let got = bank.table[p.offset + j];
         assert!((got - exact).abs() < 2e-3, "lag {tau}: {got} vs {exact}");
-    }
-}
-
-#[test]
-fn removing_a_source_keeps_the_other_pairs_peak() {
-    // Two sources on a 20 cm pair: removing the stronger one's lag leaves the weaker one's peak
-    // standing, and removing both leaves no lag with half the weaker peak (the PHAT of a mixture
-    // is not exactly the sum of the sources' GCCs, so some residual remains).
-    let array = MicArray::new(
-        "a",
-        vec![Vec3::zeros(), Vec3::new(0.2, 0.0, 0.0)],
-        vec![0, 1],
-    )
-    .unwrap();
-    let (s1, s2) = (Vec3::new(3.0, 1.0, 0.0), Vec3::new(-1.0, 2.0, 0.0));
-    let (g1, g2) = (synth::white(8192, 40), synth::white(8192, 41));
-    let weak: Vec<f64> = g2.iter().map(|v| v * 0.7).collect();
-    let x = synth::render(&array.mics, &[(s1, &g1), (s2, &weak)], FS, C, None, 0.0, 2);
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), settings(&[1.0]), FS, C);
-    bank.whiten(&synth::spectra_at(&x, 2048, 2048));
-    bank.compute();
-    let p = bank.pairs[0];
-    let at = |bank: &gcc::GccBank, tau: f64| {
-        gcc::lerp(
-            &bank.table,
-            (p.offset + p.half) as f64 + tau * bank.steps_per_second,
-        )
-    };
-    let (t1, t2) = (array.tdoa(&s1, 0, 1, C), array.tdoa(&s2, 0, 1, C));
-    let (before1, before2) = (at(&bank, t1), at(&bank, t2));
-    assert!(before1 > before2 && before2 > 0.2, "{before1} {before2}");
-    bank.remove(&[t1], 2.0 / (4000.0 - 1000.0));
-    assert!(at(&bank, t1).abs() < 0.05, "residual {}", at(&bank, t1));
-    assert!(
-        at(&bank, t2) > 0.8 * before2,
-        "{} vs {before2}",
-        at(&bank, t2)
-    );
-    bank.remove(&[t2], 2.0 / (4000.0 - 1000.0));
-    let rest = bank.table[p.offset..=p.offset + 2 * p.half]
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    assert!(
-        rest < 0.5 * before2,
-        "largest residual {rest}, peaks {before1} {before2}"
-    );
-    bank.restore();
-    assert_eq!(at(&bank, t1), before1);
-}
-
-#[test]
-fn joint_removal_keeps_a_source_on_anothers_lobe_in_place() {
-    // Two sources whose lags are 3.3 samples apart on a 10 cm pair, inside the band
-    // kernel's main lobe: removing the other with a jointly fitted amplitude leaves the kept
-    // source's peak at its own lag, and removing both leaves little.
-    let array = MicArray::new(
-        "a",
-        vec![Vec3::zeros(), Vec3::new(0.1, 0.0, 0.0)],
-        vec![0, 1],
-    )
-    .unwrap();
-    let (s1, s2) = (
-        Vec3::new(2.0 * 0.5f64.cos(), 2.0 * 0.5f64.sin(), 0.0),
-        Vec3::new(2.0 * 1.4f64.cos(), 2.0 * 1.4f64.sin(), 0.0),
-    );
-    let (g1, g2) = (synth::white(8192, 50), synth::white(8192, 51));
-    let x = synth::render(&array.mics, &[(s1, &g1), (s2, &g2)], FS, C, None, 0.0, 2);
-    let band = (192, 768);
-    let mut bank = gcc::GccBank::new(&array, 2048, band, settings(&[1.0]), FS, C);
-    bank.whiten(&synth::spectra_at(&x, 2048, 2048));
-    bank.compute();
-    let p = bank.pairs[0];
-    let lags = vec![
-        vec![array.tdoa(&s1, 0, 1, C)],
-        vec![array.tdoa(&s2, 0, 1, C)],
-    ];
-    let width = 2.0 / (6000.0 - 1500.0);
-    for keep in 0..2 {
-        bank.remove_jointly(&lags, Some(keep), width);
-        let table = &bank.table[p.offset..=p.offset + 2 * p.half];
-        let argmax = (0..table.len())
-            .max_by(|&i, &j| table[i].total_cmp(&table[j]))
-            .unwrap();
-        let lag = (argmax as f64 - p.half as f64) / bank.steps_per_second;
-        assert!(
-            (lag - lags[keep][0]).abs() < 0.25 / FS,
-            "source {keep}: peak at {} samples, expected {}",
-            lag * FS,
-            lags[keep][0] * FS
-        );
-    }
-    bank.remove_jointly(&lags, None, width);
-    let rest = bank.table[p.offset..=p.offset + 2 * p.half]
-        .iter()
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    assert!(rest < 0.15, "largest residual {rest}");
-}
-
-#[test]
-fn sliding_max_matches_brute_force() {
-    let array = MicArray::new(
-        "a",
-        vec![Vec3::zeros(), Vec3::new(0.3, 0.0, 0.0)],
-        vec![0, 1],
-    )
-    .unwrap();
-    let sig = synth::white(4096, 9);
-    let x = synth::render(
-        &array.mics,
-        &[(Vec3::new(1.0, 1.0, 0.0), &sig)],
-        FS,
-        C,
-        None,
-        0.3,
-        4,
-    );
-    let mut bank = gcc::GccBank::new(&array, 2048, (128, 256), settings(&[1.0]), FS, C);
-    bank.whiten(&synth::spectra_at(&x, 0, 2048));
-    bank.compute();
-    let len = bank.table.len();
-    for w in [0usize, 1, 3, 17, 200] {
-        let mut out = vec![0.0; len];
-        let mut work = vec![0.0; 2 * len];
-        bank.max_filter(&[w], &mut out, &mut work);
-        for (i, got) in out.iter().enumerate() {
-            let lo = i.saturating_sub(w);
-            let hi = (i + w).min(len - 1);
-            let m = bank.table[lo..=hi].iter().copied().fold(f64::MIN, f64::max);
-            assert_eq!(*got, m, "w {w} i {i}");
-        }
     }
 }
 
@@ -390,6 +260,55 @@ fn uca8_finds_two_simultaneous_sources() {
                 obs.doas.iter().map(|d| deg(d.azimuth)).collect::<Vec<_>>()
             );
         }
+    }
+}
+
+#[test]
+#[ignore = "known failure: the quieter talker is found in the first frame only (5 deg off), not in \
+            frames 1-4, for smoothing_decay 0-0.9, relative_power 0.05-0.3, prominence 0-8, \
+            mask_exponent 1-4; to investigate"]
+fn a_quieter_talker_is_found_once_the_louder_is_masked() {
+    // Two voiced, harmonic talkers 60 degrees apart in free field, the second 10 dB quieter:
+    // the louder one's lobe covers the quieter one in the SRP map, but their harmonics fall in
+    // different sub-bands, so with the louder one's sub-bands masked the quieter one is the peak.
+    let layout = uca_layout();
+    let centre = layout.arrays[0].centroid();
+    let cfg = LocalizerConfig {
+        search: SearchMode::Directions,
+        ..LocalizerConfig::default()
+    };
+    let truths = [(30.0, 20.0, 1.0, 118.0), (90.0, 10.0, 0.316, 191.0)];
+    let sources: Vec<(Vec3, Vec<f64>)> = truths
+        .iter()
+        .enumerate()
+        .map(|(i, &(az, el, gain, f0))| {
+            let s = synth::harmonic(2048 * 5, f0, FS, 70 + i as u64);
+            (
+                centre + direction_from_angles(rad(az), rad(el)) * 1.5,
+                s.iter().map(|v| v * gain).collect(),
+            )
+        })
+        .collect();
+    let refs: Vec<(Vec3, &[f64])> = sources.iter().map(|(p, s)| (*p, s.as_slice())).collect();
+    let x = synth::render(&layout.arrays[0].mics, &refs, FS, C, None, 0.003, 9);
+    let mut loc = Localizer::new(&layout, &cfg, 1).unwrap();
+    for obs in run(&mut loc, &x) {
+        let found: Vec<f64> = obs.doas.iter().map(|d| deg(d.azimuth)).collect();
+        for (i, (p, _)) in sources.iter().enumerate() {
+            let az = azimuth_of(&(p - centre));
+            let hit = obs
+                .doas
+                .iter()
+                .position(|d| angle_diff(d.azimuth, az).abs() < rad(3.0));
+            assert!(
+                hit.is_some(),
+                "talker {i} at {} deg missing from {found:?}",
+                deg(az)
+            );
+            // The louder talker is found first, the quieter one after it is masked.
+            assert_eq!(hit, Some(i), "{found:?}");
+        }
+        assert!(obs.doas.len() <= 2, "spurious candidates: {found:?}");
     }
 }
 
@@ -646,58 +565,20 @@ fn recalibration_moves_the_answer_with_the_array() {
 }
 
 #[test]
-fn config_errors_name_the_field() {
-    let layout = uca_layout();
-    let bad = |f: &dyn Fn(&mut LocalizerConfig)| {
-        let mut c = LocalizerConfig::default();
-        f(&mut c);
-        match Localizer::new(&layout, &c, 0) {
-            Err(e) => e.field,
-            Ok(_) => panic!("accepted"),
-        }
-    };
-    assert_eq!(bad(&|c| c.band_high_hz = 900.0), "band_high_hz");
-    assert_eq!(
-        bad(&|c| {
-            c.band_low_hz = 7990.0;
-            c.band_high_hz = 20000.0;
-        }),
-        "band_low_hz"
-    );
-    // The default band reaches above 4 kHz: at 8 kHz sampling it is clamped, not refused.
-    let narrow = Layout::new(8000, 343.0, layout.arrays.clone(), vec![], layout.region).unwrap();
-    let loc = Localizer::new(&narrow, &LocalizerConfig::default(), 0).unwrap();
-    assert_eq!(loc.band, (384, 1023));
-    assert_eq!(bad(&|c| c.frame = 1001), "frame");
-    assert_eq!(
-        bad(&|c| c.directions.levels = vec![4, 2]),
-        "directions.levels"
-    );
-    assert_eq!(
-        bad(&|c| c.positions.kept_points = 5000),
-        "positions.initial_points"
-    );
-    assert_eq!(
-        bad(&|c| c.peaks.relative_power = f64::NAN),
-        "peaks.relative_power"
-    );
-    let err = serde_json::from_str::<LocalizerConfig>(r#"{"positions": {"j0": 5}}"#).unwrap_err();
-    assert!(err.to_string().contains("j0"), "{err}");
-    let cfg: LocalizerConfig =
-        serde_json::from_str(r#"{"search": "directions", "peaks": {"min_power": 0.2}}"#).unwrap();
-    assert_eq!(cfg.search, SearchMode::Directions);
-    assert_eq!(cfg.peaks.min_power, 0.2);
-    assert_eq!(cfg.frame, 2048);
-}
-
-#[test]
 fn planar_array_searches_the_half_space_facing_the_region() {
     let layout = uca_layout();
     let a = &layout.arrays[0];
-    let bank = gcc::GccBank::new(a, 2048, (128, 256), settings(&[1.0]), FS, C);
+    let bank = gcc::GccBank::new(a, 2048, (128, 256), settings(0.0), FS, C);
     let cfg = DirectionConfig::default();
-    let up =
-        directions::DirectionSearch::new(a, &bank, Some(synth::room_box()), &cfg.levels, 0.002, C);
+    let up = directions::DirectionSearch::new(
+        a,
+        &bank,
+        Some(synth::room_box()),
+        &cfg.levels,
+        0.002,
+        1.0,
+        C,
+    );
     // About half of level 2's 162 points (plus those on the plane) face up.
     let sizes = up.level_sizes();
     assert!(sizes[0] >= 81 && sizes[0] < 100, "{sizes:?}");
