@@ -10,7 +10,7 @@ use avsep::dsp::{Complex, FrameGeometry, StreamingStft};
 use avsep::geometry::{
     Aabb, Layout, MicArray, Vec3, angle_diff, azimuth_of, deg, direction_from_angles, rad,
 };
-use avsep::localize::{ArrayObservation, Localizer, LocalizerConfig};
+use avsep::localize::{ArrayObservation, Localizer, LocalizerConfig, SearchMode};
 use avsep::scene::Scene;
 use avsep::scene::sim::{PresetOptions, SimConfig, simulate};
 use realfft::RealFftPlanner;
@@ -116,7 +116,7 @@ fn two_arrays_in_channel_column_order_each_see_both_talkers() {
             columns[*ch] = x;
         }
     }
-    let mut loc = Localizer::new(&layout, &LocalizerConfig::default(), 5).unwrap();
+    let mut loc = Localizer::new(&layout, &both_searches(), 5).unwrap();
     for frame in localise(&mut loc, &columns) {
         assert_eq!(frame.len(), 2);
         for obs in &frame {
@@ -151,7 +151,7 @@ fn candidates_are_in_world_coordinates_and_inside_the_region() {
     let layout = Layout::new(16000, C, vec![array.clone()], vec![], Some(region)).unwrap();
     let talker = Vec3::new(3.5, 1.5, 1.6);
     let rec = record(&array.mics, &[(talker, noise(2048 * 4, 3))], 0.01);
-    let mut loc = Localizer::new(&layout, &LocalizerConfig::default(), 9).unwrap();
+    let mut loc = Localizer::new(&layout, &both_searches(), 9).unwrap();
     for frame in localise(&mut loc, &rec) {
         let obs = &frame[0];
         let expect = (talker - array.centroid()).normalize();
@@ -450,11 +450,21 @@ mod scene_eval {
     }
 }
 
-/// The default configuration with the overrides in `AVSEP_LOCALIZE_CONFIG` (JSON), for tuning.
+/// The default configuration with both searches on every array (the default `auto` runs the
+/// 3-D search only for arrays whose positions the tracker takes, which a bare localiser has
+/// none of), with the overrides in `AVSEP_LOCALIZE_CONFIG` (JSON), for tuning.
 fn config_from_env() -> LocalizerConfig {
     std::env::var("AVSEP_LOCALIZE_CONFIG")
         .map(|j| serde_json::from_str(&j).expect("valid localiser config JSON"))
-        .unwrap_or_default()
+        .unwrap_or_else(|_| both_searches())
+}
+
+/// The default configuration with directions and positions searched on every array.
+fn both_searches() -> LocalizerConfig {
+    LocalizerConfig {
+        search: SearchMode::Both,
+        ..LocalizerConfig::default()
+    }
 }
 
 /// The scenes a measurement runs on: the folder in `dir_var` if set, else the preset simulated

@@ -35,15 +35,20 @@ pub enum SearchMode {
     Positions,
     /// Both directions and positions.
     Both,
+    /// Directions, and positions only for the arrays whose positions the tracker takes
+    /// (`localized_measurements`; see [`crate::localize::Localizer::use_positions`]): nothing
+    /// else consumes them, and the 3-D search is a fifth of a session's processing. `both`
+    /// also records every array's positions (measurements.jsonl, measurement OSPA).
+    Auto,
 }
 
 impl SearchMode {
     /// Whether the direction search runs.
     pub fn directions(self) -> bool {
-        matches!(self, Self::Directions | Self::Both)
+        matches!(self, Self::Directions | Self::Both | Self::Auto)
     }
 
-    /// Whether the position search runs.
+    /// Whether the position search runs on every array (`auto` decides per array).
     pub fn positions(self) -> bool {
         matches!(self, Self::Positions | Self::Both)
     }
@@ -85,7 +90,8 @@ pub struct LocalizerConfig {
     pub interpolation: usize,
     /// Most candidates reported per array and frame (for each search).
     pub max_candidates: usize,
-    /// Which searches to run: "directions", "positions" or "both".
+    /// Which searches to run: "directions", "positions", "both", or "auto" (directions, and
+    /// positions where the tracker uses them).
     pub search: SearchMode,
     /// Direction search on geodesic spheres.
     pub directions: DirectionConfig,
@@ -108,7 +114,7 @@ impl Default for LocalizerConfig {
             smoothing_decay: 0.9,
             interpolation: 10,
             max_candidates: 3,
-            search: SearchMode::Both,
+            search: SearchMode::Auto,
             directions: DirectionConfig::default(),
             positions: PositionConfig::default(),
             peaks: PeakConfig::default(),

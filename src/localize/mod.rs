@@ -106,6 +106,8 @@ pub struct Localizer {
     channel_count: usize,
     band: (usize, usize),
     sample_rate: f64,
+    /// Per layout array: whether its positions are wanted under `search = "auto"`.
+    wanted_positions: Vec<bool>,
 }
 
 impl Localizer {
@@ -121,9 +123,16 @@ impl Localizer {
             channel_count: 0,
             band,
             sample_rate,
+            wanted_positions: Vec::new(),
         };
         localizer.set_layout(layout)?;
         Ok(localizer)
+    }
+
+    /// Which arrays (by layout index) need position candidates under `search = "auto"`: those
+    /// whose positions the tracker takes. Arrays not listed get none.
+    pub fn use_positions(&mut self, per_array: &[bool]) {
+        self.wanted_positions = per_array.to_vec();
     }
 
     /// The analysis frame (samples) the spectra must come from.
@@ -248,8 +257,22 @@ impl Localizer {
                 points: Vec::new(),
                 activity: 0.0,
             };
+            let positions = self.cfg.search.positions()
+                || (self.cfg.search == SearchMode::Auto
+                    && self
+                        .wanted_positions
+                        .get(state.index)
+                        .copied()
+                        .unwrap_or(false));
             if shape_ok {
-                process_array(state, spectra, &self.cfg, &mut self.rng, &mut obs);
+                process_array(
+                    state,
+                    spectra,
+                    &self.cfg,
+                    positions,
+                    &mut self.rng,
+                    &mut obs,
+                );
             }
             out.push(obs);
         }
@@ -299,6 +322,7 @@ fn process_array(
     state: &mut ArrayState,
     spectra: &MultiSpectrum,
     cfg: &LocalizerConfig,
+    positions: bool,
     rng: &mut ChaCha8Rng,
     obs: &mut ArrayObservation,
 ) {
@@ -326,7 +350,7 @@ fn process_array(
     if cfg.search.directions() {
         find_directions(state, cfg, stats.mean, obs);
     }
-    if cfg.search.positions() {
+    if positions {
         find_positions(state, cfg, stats.mean, rng, obs);
     }
 }

@@ -317,6 +317,33 @@ fn src_finds_a_source_at_its_position() {
 }
 
 #[test]
+fn auto_search_finds_positions_only_for_the_arrays_that_want_them() {
+    let a0 = synth::uca(8, 0.05, Vec3::new(1.0, 1.0, 0.8), 0, "a0");
+    let a1 = synth::uca(8, 0.05, Vec3::new(5.0, 1.5, 0.9), 8, "a1");
+    let layout = synth::layout(vec![a0, a1], Some(synth::room_box()));
+    let sig = synth::white(4096, 61);
+    let mics: Vec<Vec3> = layout.arrays.iter().flat_map(|a| a.mics.clone()).collect();
+    let x = synth::render(&mics, &[(Vec3::new(3.0, 3.5, 1.7), &sig)], FS, C, None, 0.002, 11);
+    let spectra = synth::spectra_at(&x, 2048, 2048);
+    let auto = LocalizerConfig::default();
+    assert_eq!(auto.search, SearchMode::Auto);
+    let both = LocalizerConfig {
+        search: SearchMode::Both,
+        ..LocalizerConfig::default()
+    };
+    let mut loc_auto = Localizer::new(&layout, &auto, 3).unwrap();
+    loc_auto.use_positions(&[false, true]);
+    let mut loc_both = Localizer::new(&layout, &both, 3).unwrap();
+    let (oa, ob) = (loc_auto.process(&spectra), loc_both.process(&spectra));
+    assert!(oa[0].points.is_empty() && !oa[1].points.is_empty());
+    // Directions do not depend on whether positions were searched.
+    for (a, b) in oa.iter().zip(&ob) {
+        assert!(!a.doas.is_empty());
+        assert_eq!(a.doas, b.doas);
+    }
+}
+
+#[test]
 fn two_arrays_each_find_the_source_direction_in_3d() {
     // Two UCAs: each array localises on its own (no pairs across arrays); the position candidate
     // of each must lie on the ray from its centroid to the source (a 10 cm array hardly observes
@@ -324,7 +351,10 @@ fn two_arrays_each_find_the_source_direction_in_3d() {
     let a0 = synth::uca(8, 0.05, Vec3::new(1.0, 1.0, 0.8), 0, "a0");
     let a1 = synth::uca(8, 0.05, Vec3::new(5.0, 1.5, 0.9), 8, "a1");
     let layout = synth::layout(vec![a0, a1], Some(synth::room_box()));
-    let cfg = LocalizerConfig::default();
+    let cfg = LocalizerConfig {
+        search: SearchMode::Both,
+        ..LocalizerConfig::default()
+    };
     let src = Vec3::new(3.0, 3.5, 1.7);
     let sig = synth::white(6144, 60);
     let mics: Vec<Vec3> = layout.arrays.iter().flat_map(|a| a.mics.clone()).collect();

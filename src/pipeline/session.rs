@@ -109,6 +109,10 @@ impl Pipeline {
         let history = loc_frame.max(sep_frame) + 4 * clock.step_samples as usize;
         let keyed = sensors_from_layout(&layout, &cfg.track);
         let routes = SensorRoutes::new(&layout, &cfg, keyed.iter().map(|(k, _)| *k).collect());
+        let mut localizer = localizer;
+        if let Some(l) = localizer.as_mut() {
+            l.use_positions(routes.localized_positions());
+        }
         let tracker = build_tracker(
             &cfg.track,
             keyed.into_iter().map(|(_, m)| m).collect(),

@@ -191,6 +191,11 @@ impl SensorRoutes {
         }
     }
 
+    /// Per array: whether the tracker takes the localiser's positions (else its directions).
+    pub fn localized_positions(&self) -> &[bool] {
+        &self.localized_positions
+    }
+
     /// The tracker's sensor keys in index order.
     pub fn keys(&self) -> &[SensorKey] {
         &self.keys
