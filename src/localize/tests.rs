@@ -323,7 +323,15 @@ fn auto_search_finds_positions_only_for_the_arrays_that_want_them() {
     let layout = synth::layout(vec![a0, a1], Some(synth::room_box()));
     let sig = synth::white(4096, 61);
     let mics: Vec<Vec3> = layout.arrays.iter().flat_map(|a| a.mics.clone()).collect();
-    let x = synth::render(&mics, &[(Vec3::new(3.0, 3.5, 1.7), &sig)], FS, C, None, 0.002, 11);
+    let x = synth::render(
+        &mics,
+        &[(Vec3::new(3.0, 3.5, 1.7), &sig)],
+        FS,
+        C,
+        None,
+        0.002,
+        11,
+    );
     let spectra = synth::spectra_at(&x, 2048, 2048);
     let auto = LocalizerConfig::default();
     assert_eq!(auto.search, SearchMode::Auto);
