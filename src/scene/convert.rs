@@ -90,6 +90,14 @@ pub fn region_from_file(r: &RegionFile) -> Result<Aabb, GeometryError> {
     Aabb::new(Vec3::from(r.min), Vec3::from(r.max))
 }
 
+/// The file form of a region (the inverse of [`region_from_file`]).
+pub fn region_to_file(r: &Aabb) -> RegionFile {
+    RegionFile {
+        min: r.min.into(),
+        max: r.max.into(),
+    }
+}
+
 /// Builds the validated layout of a `scene.json`, naming the offending field on error.
 pub fn layout_from_file(s: &SceneFile) -> Result<Layout, GeometryError> {
     let arrays = s

@@ -8,10 +8,10 @@ use serde::Serialize;
 
 use crate::geometry::deg;
 
-use super::convert::{array_to_file, camera_to_file};
+use super::convert::{array_to_file, camera_to_file, region_to_file};
 use super::format::{
-    AudioMeasurementLine, BoxFile, DetectionLine, DoaFile, RegionFile, SCENE_FORMAT, SceneFile,
-    TruthFile, TruthSourceFile,
+    AudioMeasurementLine, BoxFile, DetectionLine, DoaFile, SCENE_FORMAT, SceneFile, TruthFile,
+    TruthSourceFile,
 };
 use super::{Audio, AudioMeasurementFrame, SampleFormat, Scene, SceneError};
 
@@ -92,10 +92,7 @@ impl Scene {
             audio: None,
             arrays: l.arrays.iter().map(array_to_file).collect(),
             cameras: l.cameras.iter().map(camera_to_file).collect(),
-            region: l.region.map(|r| RegionFile {
-                min: r.min.into(),
-                max: r.max.into(),
-            }),
+            region: l.region.as_ref().map(region_to_file),
             detections: None,
             audio_measurements: None,
             truth: None,

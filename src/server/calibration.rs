@@ -10,8 +10,9 @@ use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::{ArrayCalibration, CameraCalibration, SessionInfo};
 use crate::scene::convert::{
     array_from_file, array_to_file, camera_from_file, camera_to_file, layout_from_file,
+    region_to_file,
 };
-use crate::scene::format::{RegionFile, SCENE_FORMAT, SceneFile};
+use crate::scene::format::{SCENE_FORMAT, SceneFile};
 
 use super::app::AppState;
 use super::error::{ApiError, JsonBody, parse_json};
@@ -28,10 +29,7 @@ fn scene_of(s: &SessionHandle) -> SceneFile {
         audio: None,
         arrays: l.arrays.iter().map(array_to_file).collect(),
         cameras: l.cameras.iter().map(camera_to_file).collect(),
-        region: l.region.map(|r| RegionFile {
-            min: r.min.into(),
-            max: r.max.into(),
-        }),
+        region: l.region.as_ref().map(region_to_file),
         detections: None,
         audio_measurements: None,
         truth: None,

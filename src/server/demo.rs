@@ -16,8 +16,7 @@ use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::CreateSession;
 use crate::protocol::{AudioFrame, SampleEncoding};
 use crate::scene::Scene;
-use crate::scene::convert::{array_to_file, camera_to_file};
-use crate::scene::format::RegionFile;
+use crate::scene::convert::{array_to_file, camera_to_file, region_to_file};
 use crate::scene::sim::{PresetOptions, SimConfig, simulate};
 
 use super::registry::Registry;
@@ -81,10 +80,7 @@ pub fn create_body(scene: &Scene, opts: &DemoOptions) -> CreateSession {
         speed_of_sound: layout.speed_of_sound,
         arrays: layout.arrays.iter().map(array_to_file).collect(),
         cameras: layout.cameras.iter().map(camera_to_file).collect(),
-        region: layout.region.map(|r| RegionFile {
-            min: r.min.into(),
-            max: r.max.into(),
-        }),
+        region: layout.region.as_ref().map(region_to_file),
         settings: Some(PipelineConfig {
             seed: Some(opts.seed),
             ..Default::default()

@@ -5,8 +5,8 @@ use crate::geometry::Layout;
 use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::CreateSession;
 use crate::protocol::{AudioFrame, ClientMessage, SampleEncoding};
-use crate::scene::convert::{array_to_file, camera_to_file};
-use crate::scene::format::{AudioMeasurementLine, BoxFile, DoaFile, RegionFile};
+use crate::scene::convert::{array_to_file, camera_to_file, region_to_file};
+use crate::scene::format::{AudioMeasurementLine, BoxFile, DoaFile};
 use crate::scene::{Audio, Scene};
 
 /// The body that creates a session for `layout` with `settings`.
@@ -17,10 +17,7 @@ pub fn create_body(layout: &Layout, settings: Option<PipelineConfig>) -> CreateS
         speed_of_sound: layout.speed_of_sound,
         arrays: layout.arrays.iter().map(array_to_file).collect(),
         cameras: layout.cameras.iter().map(camera_to_file).collect(),
-        region: layout.region.map(|r| RegionFile {
-            min: r.min.into(),
-            max: r.max.into(),
-        }),
+        region: layout.region.as_ref().map(region_to_file),
         settings,
     }
 }

@@ -20,8 +20,7 @@ use crate::protocol::rest::{
 };
 use crate::protocol::{AudioFrame, ErrorBody};
 use crate::scene::DetectionFrame;
-use crate::scene::convert::{array_to_file, camera_to_file};
-use crate::scene::format::RegionFile;
+use crate::scene::convert::{array_to_file, camera_to_file, region_to_file};
 
 use super::auth;
 use super::config::Limits;
@@ -534,10 +533,7 @@ impl Session {
             channels: self.channels,
             arrays: layout.arrays.iter().map(array_to_file).collect(),
             cameras: layout.cameras.iter().map(camera_to_file).collect(),
-            region: layout.region.map(|r| RegionFile {
-                min: r.min.into(),
-                max: r.max.into(),
-            }),
+            region: layout.region.as_ref().map(region_to_file),
             step_s: self.step_s,
             next_sample: self.next_sample(),
             clients: self.clients(),
