@@ -8,7 +8,9 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use avsep::pipeline::{ConfigError, InputError, Pipeline, PipelineConfig, PipelineEvent};
+use avsep::pipeline::{
+    ConfigError, EventSink, InputError, Pipeline, PipelineConfig, PipelineEvent,
+};
 use avsep::protocol::rest::{SessionInfo, SessionMetrics, TrackHistory, TracksSnapshot};
 use avsep::protocol::{OutputSelection, SampleEncoding};
 use avsep::scene::{AudioMeasurementFrame, DetectionFrame};
@@ -312,18 +314,24 @@ impl Engine for Exploding {
         first: u64,
         ch: usize,
         s: &[f32],
-    ) -> Result<Vec<PipelineEvent>, InputError> {
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
         assert!(first < self.at, "synthetic failure at sample {first}");
-        self.inner.push_audio(first, ch, s)
+        self.inner.push_audio_to(first, ch, s, sink)
     }
-    fn push_detections(&mut self, f: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError> {
-        self.inner.push_detections(f)
+    fn push_detections(
+        &mut self,
+        f: DetectionFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        self.inner.push_detections_to(f, sink)
     }
     fn push_device_measurements(
         &mut self,
         f: AudioMeasurementFrame,
-    ) -> Result<Vec<PipelineEvent>, InputError> {
-        self.inner.push_device_measurements(f)
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        self.inner.push_device_measurements_to(f, sink)
     }
     fn set_layout(&mut self, l: avsep::geometry::Layout) -> Result<(), ConfigError> {
         self.inner.set_layout(l)
@@ -331,8 +339,8 @@ impl Engine for Exploding {
     fn update_config(&mut self, c: PipelineConfig) -> Result<(), ConfigError> {
         self.inner.update_config(c)
     }
-    fn finish(&mut self) -> Vec<PipelineEvent> {
-        self.inner.finish()
+    fn finish(&mut self, sink: &mut EventSink<'_>) {
+        self.inner.finish_to(sink)
     }
 }
 
@@ -433,6 +441,125 @@ async fn a_panicking_pipeline_fails_its_session_only() {
         .unwrap()
         .text();
     assert!(text.contains("avsep_session_failures_total 1"), "{text}");
+    server.stop().await;
+}
+
+/// A pipeline that stops after its first step's tracks until the test lets it go on, like a
+/// separation that takes long.
+struct HeldAfterTracks {
+    inner: Pipeline,
+    gate: std::sync::mpsc::Receiver<()>,
+    held: bool,
+}
+
+impl HeldAfterTracks {
+    /// Passes events on; after the first tracks, waits for the test.
+    fn hold<'a>(
+        gate: &'a std::sync::mpsc::Receiver<()>,
+        held: &'a mut bool,
+        sink: &'a mut EventSink<'_>,
+    ) -> impl FnMut(PipelineEvent) + 'a {
+        move |e| {
+            let tracks = matches!(e, PipelineEvent::Tracks { .. });
+            sink(e);
+            if tracks && !*held {
+                *held = true;
+                let _ = gate.recv_timeout(Duration::from_secs(20));
+            }
+        }
+    }
+}
+
+impl Engine for HeldAfterTracks {
+    fn push_audio(
+        &mut self,
+        first: u64,
+        ch: usize,
+        s: &[f32],
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        let mut sink = Self::hold(&self.gate, &mut self.held, sink);
+        self.inner.push_audio_to(first, ch, s, &mut sink)
+    }
+    fn push_detections(
+        &mut self,
+        f: DetectionFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        let mut sink = Self::hold(&self.gate, &mut self.held, sink);
+        self.inner.push_detections_to(f, &mut sink)
+    }
+    fn push_device_measurements(
+        &mut self,
+        f: AudioMeasurementFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        let mut sink = Self::hold(&self.gate, &mut self.held, sink);
+        self.inner.push_device_measurements_to(f, &mut sink)
+    }
+    fn set_layout(&mut self, l: avsep::geometry::Layout) -> Result<(), ConfigError> {
+        self.inner.set_layout(l)
+    }
+    fn update_config(&mut self, c: PipelineConfig) -> Result<(), ConfigError> {
+        self.inner.update_config(c)
+    }
+    fn finish(&mut self, sink: &mut EventSink<'_>) {
+        self.inner.finish_to(sink)
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_steps_tracks_are_published_before_the_rest_of_its_work() {
+    let server = TestServer::start(ServerConfig::default()).await;
+    let host = server.host();
+    let sc = scene("uca8", 1.0, 1, 83);
+    let pipeline = Pipeline::new(sc.layout.clone(), settings(8), 8).unwrap();
+    let token = "e".repeat(64);
+    let id = "0e1d0e1d0e1d0e1d";
+    let spec = SessionSpec {
+        id: id.into(),
+        name: Some("held".into()),
+        token: token.clone(),
+        step_s: pipeline.clock().step_s(),
+        audio_delay_samples: pipeline.audio_delay_samples(),
+        layout: sc.layout.clone(),
+        settings: settings(8),
+        limits: server.registry.config().limits.clone(),
+    };
+    let (release, gate) = std::sync::mpsc::channel();
+    let engine = HeldAfterTracks {
+        inner: pipeline,
+        gate,
+        held: false,
+    };
+    server.registry.insert(spec, engine).unwrap();
+    let url = format!("ws://{host}/v1/sessions/{id}/stream");
+    let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
+    let opts = StreamOptions::default();
+    let run = tokio::spawn(async move { stream_feed(&url, &token, &feed, &opts).await });
+    // The engine is still inside the message that completed step 0, yet its tracks are out.
+    let tracks_path = format!("/v1/sessions/{id}/tracks");
+    let mut seen = None;
+    for _ in 0..100 {
+        let r = http(&host, "GET", &tracks_path, Some(&"e".repeat(64)), None)
+            .await
+            .unwrap();
+        if r.status == 200 {
+            let t: TracksSnapshot = r.json().unwrap();
+            seen = Some(t.step);
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    assert_eq!(
+        seen,
+        Some(0),
+        "step 0's tracks were not published while the engine held"
+    );
+    release.send(()).unwrap();
+    let r = run.await.unwrap().unwrap();
+    assert!(r.errors.is_empty(), "{:?}", r.errors);
+    assert!(!r.tracks.is_empty());
     server.stop().await;
 }
 

@@ -3,6 +3,10 @@
 use crate::label::Label;
 use crate::scene::format::{AudioMeasurementLine, TracksLine};
 
+/// Where a pipeline hands its events, one by one as they are produced (a step's tracks before
+/// its separated audio, so a live session can send them before the separation runs).
+pub type EventSink<'a> = dyn FnMut(PipelineEvent) + 'a;
+
 /// One output of a pipeline, in the order produced.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PipelineEvent {

@@ -17,7 +17,7 @@ pub mod stages;
 pub use audio_history::AudioHistory;
 pub use clock::StepClock;
 pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, PipelineConfig};
-pub use events::PipelineEvent;
+pub use events::{EventSink, PipelineEvent};
 pub use input::InputError;
 pub use sensor_queue::SensorQueue;
 pub use session::{LIVE_SETTINGS, Pipeline, PipelineStats};

@@ -2,10 +2,11 @@
 //! can be shown with an engine that breaks on purpose.
 
 use crate::geometry::Layout;
-use crate::pipeline::{ConfigError, InputError, Pipeline, PipelineConfig, PipelineEvent};
+use crate::pipeline::{ConfigError, EventSink, InputError, Pipeline, PipelineConfig};
 use crate::scene::{AudioMeasurementFrame, DetectionFrame};
 
-/// One session's processing, as the worker thread sees it.
+/// One session's processing, as the worker thread sees it. Every input hands what it produces
+/// to `sink` as soon as it exists, so a step's tracks are sent before its separation runs.
 pub trait Engine: Send + 'static {
     /// Accepts interleaved audio starting at sample frame `first_sample`.
     fn push_audio(
@@ -13,20 +14,26 @@ pub trait Engine: Send + 'static {
         first_sample: u64,
         channels: usize,
         samples: &[f32],
-    ) -> Result<Vec<PipelineEvent>, InputError>;
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError>;
     /// Accepts one camera frame.
-    fn push_detections(&mut self, frame: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError>;
+    fn push_detections(
+        &mut self,
+        frame: DetectionFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError>;
     /// Accepts one device measurement frame.
     fn push_device_measurements(
         &mut self,
         frame: AudioMeasurementFrame,
-    ) -> Result<Vec<PipelineEvent>, InputError>;
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError>;
     /// Recalibration: new sensor positions, tracks kept.
     fn set_layout(&mut self, layout: Layout) -> Result<(), ConfigError>;
     /// New settings, where they can change live.
     fn update_config(&mut self, cfg: PipelineConfig) -> Result<(), ConfigError>;
     /// End of input: everything held is processed and flushed.
-    fn finish(&mut self) -> Vec<PipelineEvent>;
+    fn finish(&mut self, sink: &mut EventSink<'_>);
 }
 
 impl Engine for Pipeline {
@@ -35,19 +42,25 @@ impl Engine for Pipeline {
         first_sample: u64,
         channels: usize,
         samples: &[f32],
-    ) -> Result<Vec<PipelineEvent>, InputError> {
-        Pipeline::push_audio(self, first_sample, channels, samples)
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        self.push_audio_to(first_sample, channels, samples, sink)
     }
 
-    fn push_detections(&mut self, frame: DetectionFrame) -> Result<Vec<PipelineEvent>, InputError> {
-        Pipeline::push_detections(self, frame)
+    fn push_detections(
+        &mut self,
+        frame: DetectionFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        self.push_detections_to(frame, sink)
     }
 
     fn push_device_measurements(
         &mut self,
         frame: AudioMeasurementFrame,
-    ) -> Result<Vec<PipelineEvent>, InputError> {
-        Pipeline::push_device_measurements(self, frame)
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
+        self.push_device_measurements_to(frame, sink)
     }
 
     fn set_layout(&mut self, layout: Layout) -> Result<(), ConfigError> {
@@ -58,7 +71,7 @@ impl Engine for Pipeline {
         Pipeline::update_config(self, cfg)
     }
 
-    fn finish(&mut self) -> Vec<PipelineEvent> {
-        Pipeline::finish(self)
+    fn finish(&mut self, sink: &mut EventSink<'_>) {
+        self.finish_to(sink)
     }
 }

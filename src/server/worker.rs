@@ -25,11 +25,12 @@ pub(super) fn run<E: Engine>(mut engine: E, session: SessionHandle, rx: Receiver
         }
     }
     let started = Instant::now();
-    match catch_unwind(AssertUnwindSafe(|| engine.finish())) {
-        Ok(events) => {
+    let mut out = Publisher::new(&session, started);
+    match catch_unwind(AssertUnwindSafe(|| engine.finish(&mut |e| out.emit(e)))) {
+        Ok(()) => {
             let busy = started.elapsed();
             session.counters.processed(busy, 0, session.sample_rate());
-            publish(&session, events, started, busy);
+            out.count_steps(busy);
             session.close_finished();
             tracing::info!(session = %session.id(), "session finished");
         }
@@ -56,25 +57,25 @@ fn handle<E: Engine>(engine: &mut E, s: &Session, q: Queued) {
     match work {
         Work::Input(input) => {
             let started = Instant::now();
+            let mut out = Publisher::new(s, received);
+            let mut sink = |e| out.emit(e);
             let (result, samples) = match input {
                 Input::Audio(f) => (
-                    engine.push_audio(f.first_sample, f.channels, &f.samples),
+                    engine.push_audio(f.first_sample, f.channels, &f.samples, &mut sink),
                     f.frames() as u64,
                 ),
-                Input::Detections(d) => (engine.push_detections(d), 0),
-                Input::AudioMeasurements(m) => (engine.push_device_measurements(m), 0),
+                Input::Detections(d) => (engine.push_detections(d, &mut sink), 0),
+                Input::AudioMeasurements(m) => (engine.push_device_measurements(m, &mut sink), 0),
             };
             let busy = started.elapsed();
             s.counters.processed(busy, samples, s.sample_rate());
-            match result {
-                Ok(events) => publish(s, events, received, busy),
-                Err(e) => {
-                    s.counters.refused(e.code);
-                    s.broadcast(Output::Error {
-                        to: Some(client),
-                        error: Rejection::from(e).to_body(),
-                    });
-                }
+            out.count_steps(busy);
+            if let Err(e) = result {
+                s.counters.refused(e.code);
+                s.broadcast(Output::Error {
+                    to: Some(client),
+                    error: Rejection::from(e).to_body(),
+                });
             }
         }
         Work::Recalibrate(layout, reply) => {
@@ -96,15 +97,25 @@ fn handle<E: Engine>(engine: &mut E, s: &Session, q: Queued) {
     }
 }
 
-/// Broadcasts the engine's events in order; a step's latency runs from the arrival of the
-/// message that completed it to the broadcast of its tracks.
-fn publish(s: &Session, events: Vec<PipelineEvent>, received: Instant, busy: Duration) {
-    let steps = events
-        .iter()
-        .filter(|e| matches!(e, PipelineEvent::Tracks { .. }))
-        .count();
-    let per_step = busy / steps.max(1) as u32;
-    for e in events {
+/// Broadcasts a message's events in order, each as soon as the engine produces it; a step's
+/// latency runs from the arrival of the message that completed it to the broadcast of its tracks
+/// (its separation runs after that).
+struct Publisher<'a> {
+    session: &'a Session,
+    received: Instant,
+    latencies: Vec<Duration>,
+}
+
+impl<'a> Publisher<'a> {
+    fn new(session: &'a Session, received: Instant) -> Self {
+        Self {
+            session,
+            received,
+            latencies: Vec::new(),
+        }
+    }
+
+    fn emit(&mut self, e: PipelineEvent) {
         let out = match e {
             PipelineEvent::Tracks { step, line } => {
                 let snap = TracksSnapshot {
@@ -112,8 +123,8 @@ fn publish(s: &Session, events: Vec<PipelineEvent>, received: Instant, busy: Dur
                     t: line.t,
                     tracks: line.tracks,
                 };
-                s.record_tracks(&snap);
-                s.counters.step(received.elapsed(), per_step);
+                self.session.record_tracks(&snap);
+                self.latencies.push(self.received.elapsed());
                 Output::Tracks(snap)
             }
             PipelineEvent::Measurements(line) => Output::Measurements(line),
@@ -127,7 +138,10 @@ fn publish(s: &Session, events: Vec<PipelineEvent>, received: Instant, busy: Dur
                 samples,
             },
             PipelineEvent::TrackBorn { t, label } => {
-                s.counters.labels_total.fetch_add(1, Ordering::Relaxed);
+                self.session
+                    .counters
+                    .labels_total
+                    .fetch_add(1, Ordering::Relaxed);
                 Output::Event(SessionEvent::TrackBorn { t, label })
             }
             PipelineEvent::TrackEnded { t, label } => {
@@ -138,6 +152,15 @@ fn publish(s: &Session, events: Vec<PipelineEvent>, received: Instant, busy: Dur
                 message,
             }),
         };
-        s.broadcast(out);
+        self.session.broadcast(out);
+    }
+
+    /// Records the message's steps, each with its latency and an equal share of the message's
+    /// processing time `busy`.
+    fn count_steps(&self, busy: Duration) {
+        let per_step = busy / self.latencies.len().max(1) as u32;
+        for &latency in &self.latencies {
+            self.session.counters.step(latency, per_step);
+        }
     }
 }

@@ -7,22 +7,23 @@
 //! the camera wait is measured in audio time, so a live session fed in time order produces exactly
 //! what the offline run produces.
 
+mod step;
+
 use std::collections::BTreeSet;
 
 use crate::dsp::{MultiSpectrum, Stft};
 use crate::geometry::Layout;
 use crate::label::Label;
 use crate::localize::Localizer;
-use crate::scene::format::TracksLine;
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, Truth};
-use crate::track::{Scan, SensorKey, StepInput, Tracker, build_tracker, sensors_from_layout};
+use crate::track::{SensorKey, Tracker, build_tracker, sensors_from_layout};
 
 use super::config::{ConfigError, PipelineConfig};
 use super::input::{self, InputError};
 use super::sensor_queue::SensorQueue;
 use super::separation::SeparationDriver;
-use super::stages::{self, Estimate, SensorRoutes, Timeline};
-use super::{AudioHistory, PipelineEvent, StepClock};
+use super::stages::{SensorRoutes, Timeline};
+use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
 /// Counters of a pipeline's life, for summaries and metrics.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -199,7 +200,8 @@ impl Pipeline {
         Err(e)
     }
 
-    /// Accepts a block of interleaved audio starting at sample frame `first_sample`.
+    /// Accepts a block of interleaved audio starting at sample frame `first_sample`; returns what
+    /// the steps it completed produced.
     ///
     /// A block that starts after the expected sample is preceded by silence (up to `max_gap_s`);
     /// one that starts before it (overlap or time going backwards) is refused.
@@ -209,6 +211,20 @@ impl Pipeline {
         channels: usize,
         samples: &[f32],
     ) -> Result<Vec<PipelineEvent>, InputError> {
+        let mut events = Vec::new();
+        self.push_audio_to(first_sample, channels, samples, &mut |e| events.push(e))?;
+        Ok(events)
+    }
+
+    /// [`Pipeline::push_audio`] handing each event to `sink` as soon as it exists: a step's
+    /// tracks go out before its separation runs.
+    pub fn push_audio_to(
+        &mut self,
+        first_sample: u64,
+        channels: usize,
+        samples: &[f32],
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
         if let Err(e) = input::check_audio(&self.layout, channels, samples) {
             return self.reject(e);
         }
@@ -229,7 +245,6 @@ impl Pipeline {
             ));
         };
         let expected = audio.end();
-        let mut events = Vec::new();
         if first_sample < expected {
             let msg = format!(
                 "block starts at sample {first_sample} but sample {expected} is next (time goes backwards or overlaps)"
@@ -247,7 +262,7 @@ impl Pipeline {
             }
             audio.append_silence(gap as usize);
             self.stats.samples_bridged += gap;
-            events.push(PipelineEvent::Warning {
+            sink(PipelineEvent::Warning {
                 code: "gap_bridged",
                 message: format!(
                     "{gap} missing samples before sample {first_sample} replaced by silence"
@@ -256,15 +271,26 @@ impl Pipeline {
         }
         audio.append_interleaved(samples);
         self.stats.samples_in += (samples.len() / channels) as u64;
-        events.extend(self.poll());
-        Ok(events)
+        self.poll_to(sink);
+        Ok(())
     }
 
     /// Accepts one camera frame. Frames whose step already ran are refused as late.
     pub fn push_detections(
         &mut self,
-        mut frame: DetectionFrame,
+        frame: DetectionFrame,
     ) -> Result<Vec<PipelineEvent>, InputError> {
+        let mut events = Vec::new();
+        self.push_detections_to(frame, &mut |e| events.push(e))?;
+        Ok(events)
+    }
+
+    /// [`Pipeline::push_detections`] handing each event to `sink` as soon as it exists.
+    pub fn push_detections_to(
+        &mut self,
+        mut frame: DetectionFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
         let last = self
             .cameras
             .get(frame.camera)
@@ -287,7 +313,8 @@ impl Pipeline {
             .retain(|b| b.score.is_none_or(|s| s >= min_score));
         self.stats.detection_frames_in += 1;
         self.cameras[frame.camera].push(frame);
-        Ok(self.poll())
+        self.poll_to(sink);
+        Ok(())
     }
 
     /// Accepts one frame of directions/positions from a device that localises itself.
@@ -295,6 +322,17 @@ impl Pipeline {
         &mut self,
         frame: AudioMeasurementFrame,
     ) -> Result<Vec<PipelineEvent>, InputError> {
+        let mut events = Vec::new();
+        self.push_device_measurements_to(frame, &mut |e| events.push(e))?;
+        Ok(events)
+    }
+
+    /// [`Pipeline::push_device_measurements`] handing each event to `sink` as soon as it exists.
+    pub fn push_device_measurements_to(
+        &mut self,
+        frame: AudioMeasurementFrame,
+        sink: &mut EventSink<'_>,
+    ) -> Result<(), InputError> {
         let last = self
             .devices
             .get(frame.array)
@@ -312,194 +350,8 @@ impl Pipeline {
         }
         self.stats.device_frames_in += 1;
         self.devices[frame.array].push(frame);
-        Ok(self.poll())
-    }
-
-    /// Whether the data of step `k` is complete (or waited for long enough).
-    fn step_ready(&self, k: u64) -> bool {
-        let (_, t1) = self.clock.step_bounds(k);
-        if let Some(end) = self.end_sample
-            && self.clock.step_start_sample(k) >= end
-        {
-            return false;
-        }
-        let mut waited: Vec<f64> = Vec::new();
-        if self.cfg.cameras {
-            waited.extend(self.cameras.iter().map(SensorQueue::last_time));
-        }
-        waited.extend(
-            self.devices
-                .iter()
-                .filter(|d| d.has_reported())
-                .map(SensorQueue::last_time),
-        );
-        let horizon = match &self.audio {
-            Some(a) => self.clock.time_of(a.end()),
-            None => waited.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        };
-        if horizon < t1 {
-            return false;
-        }
-        self.finishing || horizon >= t1 + self.cfg.camera_wait_s || waited.iter().all(|&t| t >= t1)
-    }
-
-    /// Runs every step whose data is complete; returns what they produced.
-    pub fn poll(&mut self) -> Vec<PipelineEvent> {
-        let mut events = Vec::new();
-        while self.step_ready(self.next_step) {
-            self.run_step(&mut events);
-        }
-        events
-    }
-
-    /// Ends the input: pads the audio to whole steps and frames, runs the remaining steps and
-    /// flushes the separated streams.
-    pub fn finish(&mut self) -> Vec<PipelineEvent> {
-        self.finishing = true;
-        let mut events = Vec::new();
-        let end = match &self.audio {
-            Some(a) => a.end(),
-            None => {
-                let cams = self.cameras.iter().map(SensorQueue::last_time);
-                let t_max = cams
-                    .chain(self.devices.iter().map(SensorQueue::last_time))
-                    .fold(0.0, f64::max);
-                (t_max * self.clock.sample_rate as f64).ceil() as u64 + 1
-            }
-        };
-        self.end_sample = Some(end);
-        let steps = end.div_ceil(self.clock.step_samples);
-        if let Some(audio) = self.audio.as_mut() {
-            // Whole last step plus one separator frame of silence so every input sample is output.
-            let pad = steps * self.clock.step_samples - end + self.frame_buf.len() as u64;
-            audio.append_silence(pad as usize);
-        }
-        while self.next_step < steps && self.step_ready(self.next_step) {
-            self.run_step(&mut events);
-        }
-        if let Some(sep) = self.separation.as_mut()
-            && let Some(audio) = &self.audio
-        {
-            let until = audio.end();
-            let timeline = &self.timeline;
-            events.extend(sep.run_until(audio, until, &self.clock, |t| timeline.targets_at(t)));
-            events.extend(sep.flush());
-        }
-        for label in std::mem::take(&mut self.live) {
-            let t = self.timeline.last_time().unwrap_or(0.0);
-            events.push(PipelineEvent::TrackEnded { t, label });
-        }
-        events
-    }
-
-    fn run_step(&mut self, events: &mut Vec<PipelineEvent>) {
-        let k = self.next_step;
-        self.next_step += 1;
-        self.stats.steps += 1;
-        let (_, t1) = self.clock.step_bounds(k);
-        let t_est = self.clock.estimate_time(k);
-        let end_sample = self.clock.step_end_sample(k);
-
-        // Audio measurements: the localiser on the frame ending at the step's end.
-        let observations = self.localize(end_sample);
-        for obs in &observations {
-            events.push(PipelineEvent::Measurements(stages::measurement_line(
-                &self.layout,
-                obs,
-                t1 - self.loc_stft.frame() as f64 / self.clock.sample_rate as f64,
-            )));
-        }
-        let activity = observations.iter().map(|o| o.activity).fold(0.0, f64::max);
-
-        // Camera frames and device measurements of this step.
-        let mut camera_frames: Vec<(usize, DetectionFrame)> = Vec::new();
-        for (j, q) in self.cameras.iter_mut().enumerate() {
-            let mut frames = q.take_before(t1);
-            // One frame per camera and step: the latest (the tracker models one look per step).
-            if let Some(f) = frames.pop() {
-                camera_frames.push((j, f));
-            }
-        }
-        if self.cfg.cameras && camera_frames.len() < self.cameras.len() {
-            self.stats.steps_with_absent_camera += 1;
-        }
-        let mut device_frames: Vec<AudioMeasurementFrame> = Vec::new();
-        for q in &mut self.devices {
-            device_frames.extend(q.take_before(t1));
-        }
-
-        let estimates = match &mut self.source {
-            TrackSource::Tracker { tracker, routes } => {
-                let mut scans: Vec<Scan> = Vec::new();
-                routes.localized(&observations, &mut scans);
-                routes.devices(&device_frames, &mut scans);
-                if self.cfg.cameras {
-                    routes.cameras(&camera_frames, &mut scans);
-                }
-                let out = tracker.step(&StepInput { k, t: t_est, scans });
-                out.into_iter().map(Estimate::from).collect()
-            }
-            TrackSource::Oracle(truth) => stages::oracle_estimates(truth, t_est),
-        };
-        self.timeline.push(t_est, estimates.clone(), activity);
-        self.emit_tracks(k, t_est, &estimates, events);
-
-        // Separation of every STFT frame whose window ends within this step.
-        if let (Some(sep), Some(audio)) = (self.separation.as_mut(), self.audio.as_ref()) {
-            let timeline = &self.timeline;
-            let oracle = match &self.source {
-                TrackSource::Oracle(truth) => Some(truth),
-                TrackSource::Tracker { .. } => None,
-            };
-            events.extend(
-                sep.run_until(audio, end_sample, &self.clock, |t| match oracle {
-                    Some(truth) => stages::oracle_targets(truth, t, activity),
-                    None => timeline.targets_at(t),
-                }),
-            );
-        }
-    }
-
-    fn localize(&mut self, end_sample: u64) -> Vec<crate::localize::ArrayObservation> {
-        let (Some(localizer), Some(audio)) = (self.localizer.as_mut(), self.audio.as_ref()) else {
-            return Vec::new();
-        };
-        let n = self.loc_stft.frame();
-        let from = end_sample as i64 - n as i64;
-        for ch in 0..audio.channels() {
-            if audio.read(ch, from, &mut self.frame_buf[..n]).is_err() {
-                return Vec::new();
-            }
-            self.loc_stft
-                .forward(&self.frame_buf[..n], self.loc_spectra.channel_mut(ch));
-        }
-        localizer.process(&self.loc_spectra)
-    }
-
-    fn emit_tracks(
-        &mut self,
-        k: u64,
-        t: f64,
-        estimates: &[Estimate],
-        events: &mut Vec<PipelineEvent>,
-    ) {
-        let now: BTreeSet<Label> = estimates.iter().map(|e| e.label).collect();
-        for &label in now.difference(&self.live) {
-            if self.seen.insert(label) {
-                self.stats.labels += 1;
-            }
-            events.push(PipelineEvent::TrackBorn { t, label });
-        }
-        let prev_t = self.timeline.previous_time().unwrap_or(t);
-        for &label in self.live.difference(&now) {
-            events.push(PipelineEvent::TrackEnded { t: prev_t, label });
-        }
-        self.live = now;
-        let line = TracksLine {
-            t,
-            tracks: estimates.iter().map(Estimate::to_file).collect(),
-        };
-        events.push(PipelineEvent::Tracks { step: k, line });
+        self.poll_to(sink);
+        Ok(())
     }
 
     /// Replaces the layout (live recalibration): stages keep their tracks and adaptive state.

@@ -1,0 +1,208 @@
+//! Running the tracker steps: when a step's data is complete, and what one step does
+//! (localise, track, emit the tracks, then separate the step's audio).
+
+use std::collections::BTreeSet;
+
+use super::{Pipeline, TrackSource};
+use crate::label::Label;
+use crate::pipeline::sensor_queue::SensorQueue;
+use crate::pipeline::stages::{self, Estimate};
+use crate::pipeline::{EventSink, PipelineEvent};
+use crate::scene::format::TracksLine;
+use crate::scene::{AudioMeasurementFrame, DetectionFrame};
+use crate::track::{Scan, StepInput};
+
+impl Pipeline {
+    /// Whether the data of step `k` is complete (or waited for long enough).
+    fn step_ready(&self, k: u64) -> bool {
+        let (_, t1) = self.clock.step_bounds(k);
+        if let Some(end) = self.end_sample
+            && self.clock.step_start_sample(k) >= end
+        {
+            return false;
+        }
+        let mut waited: Vec<f64> = Vec::new();
+        if self.cfg.cameras {
+            waited.extend(self.cameras.iter().map(SensorQueue::last_time));
+        }
+        waited.extend(
+            self.devices
+                .iter()
+                .filter(|d| d.has_reported())
+                .map(SensorQueue::last_time),
+        );
+        let horizon = match &self.audio {
+            Some(a) => self.clock.time_of(a.end()),
+            None => waited.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        };
+        if horizon < t1 {
+            return false;
+        }
+        self.finishing || horizon >= t1 + self.cfg.camera_wait_s || waited.iter().all(|&t| t >= t1)
+    }
+
+    /// Runs every step whose data is complete; returns what they produced.
+    pub fn poll(&mut self) -> Vec<PipelineEvent> {
+        let mut events = Vec::new();
+        self.poll_to(&mut |e| events.push(e));
+        events
+    }
+
+    /// [`Pipeline::poll`] handing each event to `sink` as soon as it exists.
+    pub fn poll_to(&mut self, sink: &mut EventSink<'_>) {
+        while self.step_ready(self.next_step) {
+            self.run_step(sink);
+        }
+    }
+
+    /// Ends the input: pads the audio to whole steps and frames, runs the remaining steps and
+    /// flushes the separated streams.
+    pub fn finish(&mut self) -> Vec<PipelineEvent> {
+        let mut events = Vec::new();
+        self.finish_to(&mut |e| events.push(e));
+        events
+    }
+
+    /// [`Pipeline::finish`] handing each event to `sink` as soon as it exists.
+    pub fn finish_to(&mut self, sink: &mut EventSink<'_>) {
+        self.finishing = true;
+        let end = match &self.audio {
+            Some(a) => a.end(),
+            None => {
+                let cams = self.cameras.iter().map(SensorQueue::last_time);
+                let t_max = cams
+                    .chain(self.devices.iter().map(SensorQueue::last_time))
+                    .fold(0.0, f64::max);
+                (t_max * self.clock.sample_rate as f64).ceil() as u64 + 1
+            }
+        };
+        self.end_sample = Some(end);
+        let steps = end.div_ceil(self.clock.step_samples);
+        if let Some(audio) = self.audio.as_mut() {
+            // Whole last step plus one separator frame of silence so every input sample is output.
+            let pad = steps * self.clock.step_samples - end + self.frame_buf.len() as u64;
+            audio.append_silence(pad as usize);
+        }
+        while self.next_step < steps && self.step_ready(self.next_step) {
+            self.run_step(sink);
+        }
+        if let Some(sep) = self.separation.as_mut()
+            && let Some(audio) = &self.audio
+        {
+            let until = audio.end();
+            let timeline = &self.timeline;
+            sep.run_until(audio, until, &self.clock, |t| timeline.targets_at(t))
+                .into_iter()
+                .chain(sep.flush())
+                .for_each(&mut *sink);
+        }
+        for label in std::mem::take(&mut self.live) {
+            let t = self.timeline.last_time().unwrap_or(0.0);
+            sink(PipelineEvent::TrackEnded { t, label });
+        }
+    }
+
+    fn run_step(&mut self, sink: &mut EventSink<'_>) {
+        let k = self.next_step;
+        self.next_step += 1;
+        self.stats.steps += 1;
+        let (_, t1) = self.clock.step_bounds(k);
+        let t_est = self.clock.estimate_time(k);
+        let end_sample = self.clock.step_end_sample(k);
+
+        // Audio measurements: the localiser on the frame ending at the step's end.
+        let observations = self.localize(end_sample);
+        for obs in &observations {
+            sink(PipelineEvent::Measurements(stages::measurement_line(
+                &self.layout,
+                obs,
+                t1 - self.loc_stft.frame() as f64 / self.clock.sample_rate as f64,
+            )));
+        }
+        let activity = observations.iter().map(|o| o.activity).fold(0.0, f64::max);
+
+        // Camera frames and device measurements of this step.
+        let mut camera_frames: Vec<(usize, DetectionFrame)> = Vec::new();
+        for (j, q) in self.cameras.iter_mut().enumerate() {
+            let mut frames = q.take_before(t1);
+            // One frame per camera and step: the latest (the tracker models one look per step).
+            if let Some(f) = frames.pop() {
+                camera_frames.push((j, f));
+            }
+        }
+        if self.cfg.cameras && camera_frames.len() < self.cameras.len() {
+            self.stats.steps_with_absent_camera += 1;
+        }
+        let mut device_frames: Vec<AudioMeasurementFrame> = Vec::new();
+        for q in &mut self.devices {
+            device_frames.extend(q.take_before(t1));
+        }
+
+        let estimates = match &mut self.source {
+            TrackSource::Tracker { tracker, routes } => {
+                let mut scans: Vec<Scan> = Vec::new();
+                routes.localized(&observations, &mut scans);
+                routes.devices(&device_frames, &mut scans);
+                if self.cfg.cameras {
+                    routes.cameras(&camera_frames, &mut scans);
+                }
+                let out = tracker.step(&StepInput { k, t: t_est, scans });
+                out.into_iter().map(Estimate::from).collect()
+            }
+            TrackSource::Oracle(truth) => stages::oracle_estimates(truth, t_est),
+        };
+        self.timeline.push(t_est, estimates.clone(), activity);
+        self.emit_tracks(k, t_est, &estimates, sink);
+
+        // Separation of every STFT frame whose window ends within this step.
+        if let (Some(sep), Some(audio)) = (self.separation.as_mut(), self.audio.as_ref()) {
+            let timeline = &self.timeline;
+            let oracle = match &self.source {
+                TrackSource::Oracle(truth) => Some(truth),
+                TrackSource::Tracker { .. } => None,
+            };
+            sep.run_until(audio, end_sample, &self.clock, |t| match oracle {
+                Some(truth) => stages::oracle_targets(truth, t, activity),
+                None => timeline.targets_at(t),
+            })
+            .into_iter()
+            .for_each(&mut *sink);
+        }
+    }
+
+    fn localize(&mut self, end_sample: u64) -> Vec<crate::localize::ArrayObservation> {
+        let (Some(localizer), Some(audio)) = (self.localizer.as_mut(), self.audio.as_ref()) else {
+            return Vec::new();
+        };
+        let n = self.loc_stft.frame();
+        let from = end_sample as i64 - n as i64;
+        for ch in 0..audio.channels() {
+            if audio.read(ch, from, &mut self.frame_buf[..n]).is_err() {
+                return Vec::new();
+            }
+            self.loc_stft
+                .forward(&self.frame_buf[..n], self.loc_spectra.channel_mut(ch));
+        }
+        localizer.process(&self.loc_spectra)
+    }
+
+    fn emit_tracks(&mut self, k: u64, t: f64, estimates: &[Estimate], sink: &mut EventSink<'_>) {
+        let now: BTreeSet<Label> = estimates.iter().map(|e| e.label).collect();
+        for &label in now.difference(&self.live) {
+            if self.seen.insert(label) {
+                self.stats.labels += 1;
+            }
+            sink(PipelineEvent::TrackBorn { t, label });
+        }
+        let prev_t = self.timeline.previous_time().unwrap_or(t);
+        for &label in self.live.difference(&now) {
+            sink(PipelineEvent::TrackEnded { t: prev_t, label });
+        }
+        self.live = now;
+        let line = TracksLine {
+            t,
+            tracks: estimates.iter().map(Estimate::to_file).collect(),
+        };
+        sink(PipelineEvent::Tracks { step: k, line });
+    }
+}
