@@ -79,7 +79,9 @@ pub enum PostFilterTarget {
 #[serde(deny_unknown_fields, default)]
 pub struct RlsConfig {
     /// Forgetting factor per STFT frame while adapting fully (memory about 1 / (1 - forgetting)
-    /// frames).
+    /// frames). 0.98 (1.6 s at hop 512, 16 kHz) beat 0.99 on every measured scene: uca8 three
+    /// talkers, oracle tracks, seeds 1-6, SI-SDRi +0.15 dB and SIRi +0.2 dB; full pipeline seeds
+    /// 1-3 +0.17 / +0.28 dB; paper-linear6 +0.02 dB and fewer split streams.
     pub forgetting: f64,
     /// Start regularisation delta relative to the bin's input power: P0 = I / (delta * power).
     pub init_regularisation: f64,
@@ -89,15 +91,22 @@ pub struct RlsConfig {
     /// Bound on the canceller's norm relative to the fixed beamformer's (white-noise-gain
     /// constraint); the weights are scaled back when they exceed it.
     pub max_norm_ratio: f64,
+    /// Partial update: each bin's canceller adapts on one frame in this many, the bins staggered
+    /// so every frame updates the same share, with the forgetting per update raised to this
+    /// power (the memory in seconds stays the same). The output uses the latest weights on every
+    /// frame. 2 halves the canceller's cost (a capacity setting for crowded servers) at about
+    /// -0.2 dB SI-SDRi (uca8 three talkers, seeds 1-6); 1 updates every bin on every frame.
+    pub update_every: usize,
 }
 
 impl Default for RlsConfig {
     fn default() -> Self {
         Self {
-            forgetting: 0.99,
+            forgetting: 0.98,
             init_regularisation: 1e-2,
             leakage: 1e-3,
             max_norm_ratio: 10.0,
+            update_every: 1,
         }
     }
 }
@@ -330,6 +339,12 @@ impl SeparatorConfig {
         in_range("rls.init_regularisation", r.init_regularisation, 1e-9, 1e6)?;
         in_range("rls.leakage", r.leakage, 0.0, 1e3)?;
         in_range("rls.max_norm_ratio", r.max_norm_ratio, 0.0, 1e6)?;
+        if !(1..=8).contains(&r.update_every) {
+            return Err(ConfigError::new(
+                "rls.update_every",
+                format!("{} is outside 1..=8", r.update_every),
+            ));
+        }
         in_range("mvdr.forgetting", self.mvdr.forgetting, 0.5, 1.0 - 1e-9)?;
         in_range("mvdr.loading", self.mvdr.loading, 1e-9, 1e3)?;
         let a = &self.adaptation;

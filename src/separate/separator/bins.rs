@@ -146,26 +146,32 @@ impl Separator {
                     rls::weights(st, dims, &mut w.u[..l]);
                     s.blocking[k].combine(&w.u[..l], &mut w.w2[..m]);
                 }
-                let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
-                let step = RlsStep {
-                    forgetting: self.cfg.rls.forgetting,
-                    leakage: self.cfg.rls.leakage,
-                    max_norm2: self.cfg.rls.max_norm_ratio.powi(2) / an.max(1e-300),
-                };
-                let ok = rls::adapt(
-                    st,
-                    dims,
-                    &w.ur,
-                    &w.ui,
-                    e,
-                    w.beta[i],
-                    power,
-                    s.leak_index.wrapping_add(k),
-                    &step,
-                    &mut w.scratch,
-                );
-                if !ok {
-                    s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);
+                // Partial update: bin k adapts when (frame + k) is a multiple of `every`; its
+                // own update counter then is (frame + k) / every.
+                let every = self.cfg.rls.update_every.max(1);
+                let phase = s.leak_index.wrapping_add(k);
+                if phase.is_multiple_of(every) {
+                    let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
+                    let step = RlsStep {
+                        forgetting: self.cfg.rls.forgetting.powi(every as i32),
+                        leakage: self.cfg.rls.leakage,
+                        max_norm2: self.cfg.rls.max_norm_ratio.powi(2) / an.max(1e-300),
+                    };
+                    let ok = rls::adapt(
+                        st,
+                        dims,
+                        &w.ur,
+                        &w.ui,
+                        e,
+                        w.beta[i],
+                        power,
+                        phase / every,
+                        &step,
+                        &mut w.scratch,
+                    );
+                    if !ok {
+                        s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);
+                    }
                 }
                 e
             }
