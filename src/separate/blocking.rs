@@ -69,14 +69,15 @@ impl Blocking {
         }
     }
 
-    /// The blocked signals u = B^H y with real and imaginary parts apart (first M - 1 entries).
-    pub fn apply_split(&self, y: &[Complex], ur: &mut [f64], ui: &mut [f64]) {
+    /// The blocked signals u = B^H y with real and imaginary parts apart (first M - 1 entries),
+    /// in the canceller's precision.
+    pub fn apply_split(&self, y: &[Complex], ur: &mut [f32], ui: &mut [f32]) {
         let c = self.projection(y);
         let m = self.v.len();
         let (v, y, ur, ui) = (&self.v[1..m], &y[1..m], &mut ur[..m - 1], &mut ui[..m - 1]);
         for i in 0..m - 1 {
-            ur[i] = y[i].re - (v[i].re * c.re - v[i].im * c.im);
-            ui[i] = y[i].im - (v[i].re * c.im + v[i].im * c.re);
+            ur[i] = (y[i].re - (v[i].re * c.re - v[i].im * c.im)) as f32;
+            ui[i] = (y[i].im - (v[i].re * c.im + v[i].im * c.re)) as f32;
         }
     }
 

@@ -10,6 +10,12 @@
 //!   cycling coordinate (steady state ~ leakage * power * I), so directions that the input never
 //!   excites do not let P grow like lambda^{-n};
 //! * a norm bound on V (a white-noise-gain constraint), scaled back when exceeded.
+//!
+//! The state is single precision: the canceller's state is most of a session's memory traffic
+//! (one matrix per label and bin, touched every frame), and eight f32 lanes per AVX2 register
+//! do twice the work of four f64 ones. Precision is not the limit: the recursion keeps P exactly
+//! Hermitian, the leakage bounds its condition number, and a bin whose P stops being positive is
+//! reset. The a-priori output is accumulated in double precision.
 
 use crate::dsp::Complex;
 
@@ -17,11 +23,17 @@ use crate::dsp::Complex;
 /// inverse correlation bounded on digital silence.
 pub const POWER_FLOOR: f64 = 1e-14;
 
+/// Scalar type of the canceller's state.
+pub type Real = f32;
+
+/// Lanes of one vector register of [`Real`] (AVX2: eight f32); rows are padded to a multiple.
+const LANES: usize = 8;
+
 /// The leakage update runs on one call in this many (with a step as much larger), which keeps
 /// its cost a fraction of the main update's; callers stagger `leak_index` across bins.
 pub const LEAK_EVERY: usize = 4;
 
-/// Shape of one bin's canceller state: `l` weights, stored padded to `lp` (a multiple of 4) with
+/// Shape of one bin's canceller state: `l` weights, stored padded to `lp` (a multiple of 8) with
 /// real and imaginary parts apart, so the inner loops run over contiguous equal-length rows that
 /// the compiler vectorises. Layout: V re, V im (`lp` each), then P re, P im (`lp * lp` each,
 /// row-major), then a scale s (and padding to keep rows aligned): the inverse correlation is
@@ -31,7 +43,7 @@ pub const LEAK_EVERY: usize = 4;
 pub struct Dims {
     /// Number of blocked channels (M - 1).
     pub l: usize,
-    /// `l` rounded up to a multiple of 4.
+    /// `l` rounded up to a multiple of 8.
     pub lp: usize,
 }
 
@@ -40,7 +52,7 @@ impl Dims {
     pub fn new(l: usize) -> Self {
         Self {
             l,
-            lp: l.div_ceil(4) * 4,
+            lp: l.div_ceil(LANES) * LANES,
         }
     }
 
@@ -63,14 +75,14 @@ pub struct RlsStep {
 
 /// A bin's state split into V re, V im, P re, P im and the scale of P.
 type Parts<'a> = (
-    &'a mut [f64],
-    &'a mut [f64],
-    &'a mut [f64],
-    &'a mut [f64],
-    &'a mut f64,
+    &'a mut [Real],
+    &'a mut [Real],
+    &'a mut [Real],
+    &'a mut [Real],
+    &'a mut Real,
 );
 
-fn parts(state: &mut [f64], d: Dims) -> Parts<'_> {
+fn parts(state: &mut [Real], d: Dims) -> Parts<'_> {
     let (v, p) = state.split_at_mut(2 * d.lp);
     let (vr, vi) = v.split_at_mut(d.lp);
     let (p, tail) = p.split_at_mut(2 * d.lp * d.lp);
@@ -79,9 +91,9 @@ fn parts(state: &mut [f64], d: Dims) -> Parts<'_> {
 }
 
 /// Resets one bin's canceller: V = 0, P = I / (delta * power).
-pub fn reset(state: &mut [f64], d: Dims, delta: f64, power: f64) {
+pub fn reset(state: &mut [Real], d: Dims, delta: f64, power: f64) {
     state.fill(0.0);
-    let p0 = 1.0 / (delta * power.max(POWER_FLOOR));
+    let p0 = (1.0 / (delta * power.max(POWER_FLOOR))) as Real;
     let (_, _, pr, _, scale) = parts(state, d);
     for i in 0..d.l {
         pr[i * d.lp + i] = p0;
@@ -90,28 +102,34 @@ pub fn reset(state: &mut [f64], d: Dims, delta: f64, power: f64) {
 }
 
 /// Trace of the inverse correlation matrix (a health measure: it stays bounded with leakage).
-pub fn inverse_correlation_trace(state: &[f64], d: Dims) -> f64 {
+pub fn inverse_correlation_trace(state: &[Real], d: Dims) -> f64 {
     let p = &state[2 * d.lp..];
-    let scale = p[2 * d.lp * d.lp];
-    (0..d.l).map(|i| p[i * d.lp + i]).sum::<f64>() * scale
+    let scale = f64::from(p[2 * d.lp * d.lp]);
+    (0..d.l).map(|i| f64::from(p[i * d.lp + i])).sum::<f64>() * scale
 }
 
 /// The weights V of one bin (length `l`).
-pub fn weights(state: &[f64], d: Dims, out: &mut [Complex]) {
+pub fn weights(state: &[Real], d: Dims, out: &mut [Complex]) {
     for (i, o) in out.iter_mut().enumerate().take(d.l) {
-        *o = Complex::new(state[i], state[d.lp + i]);
+        *o = Complex::new(f64::from(state[i]), f64::from(state[d.lp + i]));
     }
 }
 
 /// A-priori output e = d - V^H u (the canceller's output with the weights before this step);
 /// `ur`, `ui` are the blocked signals (length `lp`, zero padded).
-pub fn output(state: &[f64], d: Dims, ur: &[f64], ui: &[f64], fixed: Complex) -> Complex {
-    let (vr, vi) = (&state[..d.lp], &state[d.lp..2 * d.lp]);
-    let (mut re, mut im) = (0.0, 0.0);
-    for j in 0..d.lp {
+pub fn output(state: &[Real], d: Dims, ur: &[Real], ui: &[Real], fixed: Complex) -> Complex {
+    let (vr, vi) = (&state[..d.l], &state[d.lp..d.lp + d.l]);
+    let (mut re, mut im) = (0.0f64, 0.0f64);
+    for j in 0..d.l {
         // conj(v) u
-        re += vr[j] * ur[j] + vi[j] * ui[j];
-        im += vr[j] * ui[j] - vi[j] * ur[j];
+        let (a, b, x, y) = (
+            f64::from(vr[j]),
+            f64::from(vi[j]),
+            f64::from(ur[j]),
+            f64::from(ui[j]),
+        );
+        re += a * x + b * y;
+        im += a * y - b * x;
     }
     fixed - Complex::new(re, im)
 }
@@ -119,23 +137,23 @@ pub fn output(state: &[f64], d: Dims, ur: &[f64], ui: &[f64], fixed: Complex) ->
 /// P <- P - h h^H. h_i h_j^* and h_j h_i^* come from the same products, so a Hermitian
 /// P stays exactly Hermitian without mirroring.
 #[inline(always)]
-fn rank_one_down(pr: &mut [f64], pi: &mut [f64], lp: usize, hr: &[f64], hi: &[f64]) {
-    // With the size hidden from the optimiser the row loop stays a loop of four-wide blocks; a
-    // known small size gets unrolled across rows into gathers and spills.
+fn rank_one_down(pr: &mut [Real], pi: &mut [Real], lp: usize, hr: &[Real], hi: &[Real]) {
+    // With the size hidden from the optimiser the row loop stays a loop of register-wide
+    // blocks; a known small size gets unrolled across rows into gathers and spills.
     let lp = std::hint::black_box(lp);
     let (hr, hi) = (&hr[..lp], &hi[..lp]);
     for i in 0..lp {
         let (ar, ai) = (hr[i], hi[i]);
         let rr = &mut pr[i * lp..(i + 1) * lp];
         let ri = &mut pi[i * lp..(i + 1) * lp];
-        // Fixed four-wide blocks along the row: one vector register each, whatever lp is.
+        // Fixed register-wide blocks along the row: one vector register each, whatever lp is.
         for (((r4, i4), h4), g4) in rr
-            .chunks_exact_mut(4)
-            .zip(ri.chunks_exact_mut(4))
-            .zip(hr.chunks_exact(4))
-            .zip(hi.chunks_exact(4))
+            .chunks_exact_mut(LANES)
+            .zip(ri.chunks_exact_mut(LANES))
+            .zip(hr.chunks_exact(LANES))
+            .zip(hi.chunks_exact(LANES))
         {
-            for q in 0..4 {
+            for q in 0..LANES {
                 r4[q] -= ar * h4[q] + ai * g4[q];
                 i4[q] -= ai * h4[q] - ar * g4[q];
             }
@@ -148,16 +166,16 @@ fn rank_one_down(pr: &mut [f64], pi: &mut [f64], lp: usize, hr: &[f64], hi: &[f6
 /// false when the recursion produced something non-finite; the caller then resets the bin.
 #[allow(clippy::too_many_arguments)]
 pub fn adapt(
-    state: &mut [f64],
+    state: &mut [Real],
     d: Dims,
-    ur: &[f64],
-    ui: &[f64],
+    ur: &[Real],
+    ui: &[Real],
     e: Complex,
     beta: f64,
     power: f64,
     leak_index: usize,
     step: &RlsStep,
-    scratch: &mut [f64],
+    scratch: &mut [Real],
 ) -> bool {
     if beta <= 0.0 || d.l == 0 {
         return true;
@@ -171,16 +189,16 @@ pub fn adapt(
     adapt_dispatch::<Plain>(state, d, args, scratch)
 }
 
-/// [`adapt_dispatch`] compiled for AVX2 (four lanes instead of two) with fused multiply-adds.
+/// [`adapt_dispatch`] compiled for AVX2 (eight lanes instead of four) with fused multiply-adds.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn adapt_avx2(state: &mut [f64], d: Dims, args: StepArgs, scratch: &mut [f64]) -> bool {
+fn adapt_avx2(state: &mut [Real], d: Dims, args: StepArgs, scratch: &mut [Real]) -> bool {
     adapt_dispatch::<Fused>(state, d, args, scratch)
 }
 
 /// a * b + c, rounded once where the CPU has fused multiply-add.
 trait MulAdd {
-    fn madd(a: f64, b: f64, c: f64) -> f64;
+    fn madd(a: Real, b: Real, c: Real) -> Real;
 }
 
 /// Separate multiply and add (no FMA unit assumed).
@@ -188,7 +206,7 @@ struct Plain;
 
 impl MulAdd for Plain {
     #[inline(always)]
-    fn madd(a: f64, b: f64, c: f64) -> f64 {
+    fn madd(a: Real, b: Real, c: Real) -> Real {
         a * b + c
     }
 }
@@ -200,42 +218,49 @@ struct Fused;
 #[cfg(target_arch = "x86_64")]
 impl MulAdd for Fused {
     #[inline(always)]
-    fn madd(a: f64, b: f64, c: f64) -> f64 {
+    fn madd(a: Real, b: Real, c: Real) -> Real {
         a.mul_add(b, c)
     }
 }
 
 #[inline(always)]
 fn adapt_dispatch<F: MulAdd>(
-    state: &mut [f64],
+    state: &mut [Real],
     d: Dims,
     args: StepArgs,
-    scratch: &mut [f64],
+    scratch: &mut [Real],
 ) -> bool {
     // Common padded sizes get their own copy with constant loop bounds (unrolled, vectorised).
     match d.lp {
-        4 => adapt_sized::<F>(state, d, 4, args, scratch),
         8 => adapt_sized::<F>(state, d, 8, args, scratch),
         16 => adapt_sized::<F>(state, d, 16, args, scratch),
         lp => adapt_sized::<F>(state, d, lp, args, scratch),
     }
 }
 
-type StepArgs<'a> = (&'a [f64], &'a [f64], Complex, f64, f64, usize, &'a RlsStep);
+type StepArgs<'a> = (
+    &'a [Real],
+    &'a [Real],
+    Complex,
+    f64,
+    f64,
+    usize,
+    &'a RlsStep,
+);
 
 #[inline(always)]
 fn adapt_sized<F: MulAdd>(
-    state: &mut [f64],
+    state: &mut [Real],
     d: Dims,
     lp: usize,
     (ur, ui, e, beta, power, leak_index, step): StepArgs,
-    scratch: &mut [f64],
+    scratch: &mut [Real],
 ) -> bool {
     let (ur, ui) = (&ur[..lp], &ui[..lp]);
     let (vr, vi, pr, pi, scale) = parts(state, d);
     let (hr, hi) = scratch[..2 * lp].split_at_mut(lp);
     let lam = 1.0 - (1.0 - step.forgetting) * beta;
-    let sc = *scale;
+    let sc = f64::from(*scale);
     // h = P u (the true inverse correlation is sc P). P is Hermitian, so
     // (P u)_i = sum_j conj(P_ji) u_j: an axpy over contiguous rows. (The Hermitian structure of
     // P only matters in its own update, so fused products are fine here.)
@@ -252,9 +277,9 @@ fn adapt_sized<F: MulAdd>(
         }
     }
     // The conversion term u^H (sc P) u is real for a Hermitian P.
-    let mut upu = 0.0;
+    let mut upu = 0.0f64;
     for i in 0..lp {
-        upu += ur[i] * hr[i] + ui[i] * hi[i];
+        upu += f64::from(ur[i] * hr[i] + ui[i] * hi[i]);
     }
     let den = lam + beta * sc * upu;
     if !(den > 0.0 && den.is_finite()) {
@@ -262,13 +287,13 @@ fn adapt_sized<F: MulAdd>(
     }
     let g = beta / den;
     // V += g (sc P u) e^*.
-    let (er, ei) = (g * sc * e.re, -g * sc * e.im);
+    let (er, ei) = ((g * sc * e.re) as Real, (-g * sc * e.im) as Real);
     for i in 0..lp {
         vr[i] = F::madd(hr[i], er, F::madd(-hi[i], ei, vr[i]));
         vi[i] = F::madd(hr[i], ei, F::madd(hi[i], er, vi[i]));
     }
     // sc P <- (sc P - g sc^2 (P u)(P u)^H) / lambda, i.e. P -= g sc (P u)(P u)^H and sc /= lambda.
-    let sg = (g * sc).sqrt();
+    let sg = (g * sc).sqrt() as Real;
     hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= sg);
     rank_one_down(pr, pi, lp, hr, hi);
     let mut sc = sc / lam;
@@ -283,32 +308,37 @@ fn adapt_sized<F: MulAdd>(
             hr[i] = pr[j * lp + i];
             hi[i] = -pi[j * lp + i];
         }
-        let s = c / (1.0 + c * sc * hr[j]);
-        let (wr, wi) = (s * sc * vr[j], s * sc * vi[j]);
+        let s = c / (1.0 + c * sc * f64::from(hr[j]));
+        let (wr, wi) = (
+            (s * sc * f64::from(vr[j])) as Real,
+            (s * sc * f64::from(vi[j])) as Real,
+        );
         for i in 0..lp {
             vr[i] -= hr[i] * wr - hi[i] * wi;
             vi[i] -= hr[i] * wi + hi[i] * wr;
         }
-        let ss = (s * sc).sqrt();
+        let ss = (s * sc).sqrt() as Real;
         hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= ss);
         rank_one_down(pr, pi, lp, hr, hi);
     }
     // Fold the scale back into P before it drifts far from 1.
     if !(1e-6..=1e6).contains(&sc) {
-        pr.iter_mut().chain(pi.iter_mut()).for_each(|x| *x *= sc);
+        let f = sc as Real;
+        pr.iter_mut().chain(pi.iter_mut()).for_each(|x| *x *= f);
         sc = 1.0;
     }
-    *scale = sc;
-    let n2: f64 = vr.iter().chain(vi.iter()).map(|x| x * x).sum();
+    *scale = sc as Real;
+    let n2: f64 = vr.iter().chain(vi.iter()).map(|&x| f64::from(x * x)).sum();
     if n2 > step.max_norm2 {
-        let s = (step.max_norm2 / n2).sqrt();
+        let s = (step.max_norm2 / n2).sqrt() as Real;
         vr.iter_mut().chain(vi.iter_mut()).for_each(|x| *x *= s);
     }
-    let mut trace = 0.0;
+    let mut trace = 0.0f64;
     let mut smallest = f64::INFINITY;
     for i in 0..d.l {
-        trace += pr[i * lp + i];
-        smallest = smallest.min(pr[i * lp + i]);
+        let p = f64::from(pr[i * lp + i]);
+        trace += p;
+        smallest = smallest.min(p);
     }
     n2.is_finite() && (trace * sc).is_finite() && smallest > 0.0 && sc > 0.0
 }
@@ -326,12 +356,12 @@ mod tests {
         )
     }
 
-    fn split(u: &[Complex], d: Dims) -> (Vec<f64>, Vec<f64>) {
+    fn split(u: &[Complex], d: Dims) -> (Vec<Real>, Vec<Real>) {
         let mut r = vec![0.0; d.lp];
         let mut i = vec![0.0; d.lp];
         for (k, x) in u.iter().enumerate() {
-            r[k] = x.re;
-            i[k] = x.im;
+            r[k] = x.re as Real;
+            i[k] = x.im as Real;
         }
         (r, i)
     }
@@ -345,8 +375,8 @@ mod tests {
             Complex::new(-0.1, 0.3),
             Complex::new(0.0, 0.7),
         ];
-        let mut st = vec![0.0; d.stride()];
-        let mut scratch = vec![0.0; 2 * d.lp];
+        let mut st: Vec<Real> = vec![0.0; d.stride()];
+        let mut scratch: Vec<Real> = vec![0.0; 2 * d.lp];
         reset(&mut st, d, 1e-2, 0.66);
         let step = RlsStep {
             forgetting: 0.99,
@@ -382,8 +412,8 @@ mod tests {
     fn stays_bounded_when_one_direction_is_never_excited() {
         let d = Dims::new(4);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let mut st = vec![0.0; d.stride()];
-        let mut scratch = vec![0.0; 2 * d.lp];
+        let mut st: Vec<Real> = vec![0.0; d.stride()];
+        let mut scratch: Vec<Real> = vec![0.0; 2 * d.lp];
         reset(&mut st, d, 1e-2, 1.0);
         let step = RlsStep {
             forgetting: 0.95,
@@ -427,7 +457,7 @@ mod tests {
     #[test]
     fn zero_weight_freezes_the_state() {
         let d = Dims::new(2);
-        let mut st = vec![0.0; d.stride()];
+        let mut st: Vec<Real> = vec![0.0; d.stride()];
         reset(&mut st, d, 1.0, 1.0);
         st[0] = 0.1;
         let before = st.clone();
@@ -437,7 +467,7 @@ mod tests {
             max_norm2: 1e6,
         };
         let (ur, ui) = split(&[Complex::new(1.0, 2.0), Complex::new(-1.0, 0.5)], d);
-        let mut scratch = vec![0.0; 2 * d.lp];
+        let mut scratch: Vec<Real> = vec![0.0; 2 * d.lp];
         let e = Complex::new(3.0, 0.0);
         assert!(adapt(
             &mut st,

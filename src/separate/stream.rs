@@ -33,7 +33,7 @@ pub(super) struct Stream {
     pub adaptive: Vec<Complex>,
     pub stride: usize,
     /// GSC canceller state, `rls_dims.stride()` values per bin.
-    pub rls: Vec<f64>,
+    pub rls: Vec<rls::Real>,
     pub rls_dims: rls::Dims,
     /// The adaptive state must be (re)initialised before the next frame.
     pub needs_reset: bool,
