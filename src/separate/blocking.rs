@@ -34,34 +34,13 @@ impl Blocking {
 
     /// Builds the reflector that blocks steering vector `a` (length M).
     pub fn set(&mut self, a: &[Complex]) {
-        let m = a.len();
-        self.v.resize(m, Complex::new(0.0, 0.0));
-        let a0 = a[0].norm_sqr().sqrt();
-        // Rotating x so that x_0 >= 0 spans the same line and keeps the basis continuous.
-        let rot = if a0 > 1e-300 {
-            a[0].conj() / a0
-        } else {
-            Complex::new(1.0, 0.0)
-        };
-        let v = &mut self.v[..m];
-        let mut norm2 = 0.0;
-        for i in 0..m {
-            v[i] = a[i] * rot;
-            norm2 += v[i].norm_sqr();
-        }
-        let norm = norm2.sqrt();
-        v[0].re += norm;
-        let vv = 2.0 * norm * (norm + a0);
-        self.scale = if vv > 1e-300 && vv.is_finite() {
-            2.0 / vv
-        } else {
-            0.0
-        };
+        self.v.resize(a.len(), Complex::new(0.0, 0.0));
+        self.scale = reflector(a, &mut self.v);
     }
 
     /// The blocked signals u = B^H y (length M - 1).
     pub fn apply(&self, y: &[Complex], u: &mut [Complex]) {
-        let c = self.projection(y);
+        let c = projection(&self.v, self.scale, y);
         let m = self.v.len();
         let (v, y, u) = (&self.v[1..m], &y[1..m], &mut u[..m - 1]);
         for i in 0..m - 1 {
@@ -72,40 +51,122 @@ impl Blocking {
     /// The blocked signals u = B^H y with real and imaginary parts apart (first M - 1 entries),
     /// in the canceller's precision.
     pub fn apply_split(&self, y: &[Complex], ur: &mut [f32], ui: &mut [f32]) {
-        let c = self.projection(y);
-        let m = self.v.len();
-        let (v, y, ur, ui) = (&self.v[1..m], &y[1..m], &mut ur[..m - 1], &mut ui[..m - 1]);
-        for i in 0..m - 1 {
-            ur[i] = (y[i].re - (v[i].re * c.re - v[i].im * c.im)) as f32;
-            ui[i] = (y[i].im - (v[i].re * c.im + v[i].im * c.re)) as f32;
-        }
-    }
-
-    /// s v^H y, the component removed by the reflection.
-    fn projection(&self, y: &[Complex]) -> Complex {
-        let m = self.v.len();
-        let (v, y) = (&self.v[..m], &y[..m]);
-        let (mut re, mut im) = (0.0, 0.0);
-        for i in 0..m {
-            re += v[i].re * y[i].re + v[i].im * y[i].im;
-            im += v[i].re * y[i].im - v[i].im * y[i].re;
-        }
-        Complex::new(re * self.scale, im * self.scale)
+        apply_split(&self.v, self.scale, y, ur, ui);
     }
 
     /// The combination B q of the basis columns (length M), e.g. the canceller's share of the
     /// beamformer weights.
     pub fn combine(&self, q: &[Complex], out: &mut [Complex]) {
-        // H [0; q] = [0; q] - s v (v^H [0; q]).
-        let mut vq = Complex::new(0.0, 0.0);
-        for (v, q) in self.v[1..].iter().zip(q) {
-            vq += v.conj() * q;
+        combine(&self.v, self.scale, q, out);
+    }
+}
+
+/// One label's blocking matrices for every bin, stored bin after bin in one block, so the
+/// per-frame sweep over the bins reads memory in order instead of chasing a pointer per bin.
+#[derive(Debug, Clone, Default)]
+pub struct BlockingBank {
+    m: usize,
+    v: Vec<Complex>,
+    scale: Vec<f64>,
+}
+
+impl BlockingBank {
+    /// Empty matrices for `m` microphones and `bins` bins.
+    pub fn new(m: usize, bins: usize) -> Self {
+        Self {
+            m,
+            v: vec![Complex::new(0.0, 0.0); m * bins],
+            scale: vec![0.0; bins],
         }
-        let c = vq * self.scale;
-        out[0] = -self.v[0] * c;
-        for ((o, v), q) in out[1..].iter_mut().zip(&self.v[1..]).zip(q) {
-            *o = q - v * c;
-        }
+    }
+
+    /// Number of microphones.
+    pub fn mics(&self) -> usize {
+        self.m
+    }
+
+    /// Number of bins.
+    pub fn bins(&self) -> usize {
+        self.scale.len()
+    }
+
+    /// Builds bin `k`'s reflector for steering vector `a` (length M).
+    pub fn set(&mut self, k: usize, a: &[Complex]) {
+        let m = self.m;
+        self.scale[k] = reflector(&a[..m], &mut self.v[k * m..(k + 1) * m]);
+    }
+
+    /// Bin `k`'s blocked signals, as [`Blocking::apply_split`].
+    pub fn apply_split(&self, k: usize, y: &[Complex], ur: &mut [f32], ui: &mut [f32]) {
+        let m = self.m;
+        apply_split(&self.v[k * m..(k + 1) * m], self.scale[k], y, ur, ui);
+    }
+
+    /// Bin `k`'s combination of basis columns, as [`Blocking::combine`].
+    pub fn combine(&self, k: usize, q: &[Complex], out: &mut [Complex]) {
+        let m = self.m;
+        combine(&self.v[k * m..(k + 1) * m], self.scale[k], q, out);
+    }
+}
+
+/// Writes the reflector vector v for steering `a` (same length); returns its scale s.
+fn reflector(a: &[Complex], v: &mut [Complex]) -> f64 {
+    let m = a.len();
+    let a0 = a[0].norm_sqr().sqrt();
+    // Rotating x so that x_0 >= 0 spans the same line and keeps the basis continuous.
+    let rot = if a0 > 1e-300 {
+        a[0].conj() / a0
+    } else {
+        Complex::new(1.0, 0.0)
+    };
+    let v = &mut v[..m];
+    let mut norm2 = 0.0;
+    for i in 0..m {
+        v[i] = a[i] * rot;
+        norm2 += v[i].norm_sqr();
+    }
+    let norm = norm2.sqrt();
+    v[0].re += norm;
+    let vv = 2.0 * norm * (norm + a0);
+    if vv > 1e-300 && vv.is_finite() {
+        2.0 / vv
+    } else {
+        0.0
+    }
+}
+
+/// s v^H y, the component removed by the reflection.
+fn projection(v: &[Complex], scale: f64, y: &[Complex]) -> Complex {
+    let m = v.len();
+    let y = &y[..m];
+    let (mut re, mut im) = (0.0, 0.0);
+    for i in 0..m {
+        re += v[i].re * y[i].re + v[i].im * y[i].im;
+        im += v[i].re * y[i].im - v[i].im * y[i].re;
+    }
+    Complex::new(re * scale, im * scale)
+}
+
+fn apply_split(v: &[Complex], scale: f64, y: &[Complex], ur: &mut [f32], ui: &mut [f32]) {
+    let c = projection(v, scale, y);
+    let m = v.len();
+    let (v, y, ur, ui) = (&v[1..m], &y[1..m], &mut ur[..m - 1], &mut ui[..m - 1]);
+    for i in 0..m - 1 {
+        ur[i] = (y[i].re - (v[i].re * c.re - v[i].im * c.im)) as f32;
+        ui[i] = (y[i].im - (v[i].re * c.im + v[i].im * c.re)) as f32;
+    }
+}
+
+fn combine(v: &[Complex], scale: f64, q: &[Complex], out: &mut [Complex]) {
+    // H [0; q] = [0; q] - s v (v^H [0; q]).
+    let mut vq = Complex::new(0.0, 0.0);
+    for (v, q) in v[1..].iter().zip(q) {
+        vq += v.conj() * q;
+    }
+    let c = vq * scale;
+    out[0] = -v[0] * c;
+    for ((o, v), q) in out[1..].iter_mut().zip(&v[1..]).zip(q) {
+        *o = q - v * c;
     }
 }
 
@@ -172,6 +233,36 @@ mod tests {
                 let ip: Complex = cols[i].iter().zip(&y2).map(|(x, y)| x.conj() * y).sum();
                 assert!((ip - u[i]).norm() < 1e-12);
             }
+        }
+    }
+
+    #[test]
+    fn bank_matches_one_matrix_per_bin() {
+        let vs = vecs();
+        let m = vs[0].len();
+        let mut bank = BlockingBank::new(m, vs.len());
+        for (k, a) in vs.iter().enumerate() {
+            bank.set(k, a);
+        }
+        let y: Vec<Complex> = (0..m)
+            .map(|i| Complex::new(i as f64, 1.0 - i as f64))
+            .collect();
+        for (k, a) in vs.iter().enumerate() {
+            let mut one = Blocking::new(m);
+            one.set(a);
+            let (mut r1, mut i1) = (vec![0.0f32; m - 1], vec![0.0f32; m - 1]);
+            let (mut r2, mut i2) = (vec![0.0f32; m - 1], vec![0.0f32; m - 1]);
+            one.apply_split(&y, &mut r1, &mut i1);
+            bank.apply_split(k, &y, &mut r2, &mut i2);
+            assert_eq!((r1, i1), (r2, i2));
+            let q: Vec<Complex> = y[..m - 1].to_vec();
+            let (mut c1, mut c2) = (
+                vec![Complex::new(0.0, 0.0); m],
+                vec![Complex::new(0.0, 0.0); m],
+            );
+            one.combine(&q, &mut c1);
+            bank.combine(k, &q, &mut c2);
+            assert_eq!(c1, c2);
         }
     }
 }

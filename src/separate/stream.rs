@@ -1,6 +1,6 @@
 //! One label's stream in the bank: where it steers, its lifecycle and its per-bin adaptive state.
 
-use super::blocking::Blocking;
+use super::blocking::BlockingBank;
 use super::config::BeamformerKind;
 use super::lifecycle::Envelope;
 use super::null_steering::NullSteering;
@@ -48,7 +48,7 @@ pub(super) struct Stream {
     /// Effective filter of the last frame, bins x channels (only when recording).
     pub filters: Vec<Complex>,
     /// Blocking matrix per bin, built for `steering` (GSC).
-    pub blocking: Vec<Blocking>,
+    pub blocking: BlockingBank,
     /// Fixed beamformer per bin when the nulls are capped (this stream's own constraint set).
     pub null_steering: Vec<NullSteering>,
     /// The steering moved beyond the tolerance (or the stream is new): rebuild its blocking
@@ -81,7 +81,7 @@ impl Stream {
             leak_index: 0,
             constraints: Vec::new(),
             filters: Vec::new(),
-            blocking: Vec::new(),
+            blocking: BlockingBank::default(),
             null_steering: Vec::new(),
             steering_changed: true,
             constraints_changed: true,

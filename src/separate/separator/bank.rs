@@ -4,7 +4,7 @@
 use super::{MicGroup, SWITCH_RATIO, Separator};
 use crate::dsp::Complex;
 use crate::separate::Target;
-use crate::separate::blocking::Blocking;
+use crate::separate::blocking::BlockingBank;
 use crate::separate::config::MicSelection;
 use crate::separate::null_steering::NullSteering;
 use crate::separate::postfilter::PostState;
@@ -84,8 +84,8 @@ impl Separator {
                     .iter_mut()
                     .for_each(|st| *st = Steering::default());
             }
-            if s.blocking.len() != bins || s.blocking.first().is_some_and(|b| b.mics() != m) {
-                s.blocking = vec![Blocking::new(m); bins];
+            if s.blocking.bins() != bins || s.blocking.mics() != m {
+                s.blocking = BlockingBank::new(m, bins);
                 s.steering_changed = true;
             }
         }

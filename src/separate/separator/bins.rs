@@ -130,21 +130,20 @@ impl Separator {
             BeamformerKind::Gsc => {
                 let dims = s.rls_dims;
                 let l = dims.l;
-                let blocking = &mut s.blocking[k];
                 if s.steering_changed {
-                    blocking.set(a);
+                    s.blocking.set(k, a);
                 }
                 // The padding must be zero (another group may have left values there).
                 w.ur[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
                 w.ui[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
-                blocking.apply_split(y, &mut w.ur[..l], &mut w.ui[..l]);
+                s.blocking.apply_split(k, y, &mut w.ur[..l], &mut w.ui[..l]);
                 let stride = dims.stride();
                 let st = &mut s.rls[k * stride..(k + 1) * stride];
                 let e = rls::output(st, dims, &w.ur, &w.ui, d);
                 if self.record {
                     // Effective weights W - B V with the weights that made this output.
                     rls::weights(st, dims, &mut w.u[..l]);
-                    s.blocking[k].combine(&w.u[..l], &mut w.w2[..m]);
+                    s.blocking.combine(k, &w.u[..l], &mut w.w2[..m]);
                 }
                 // Partial update: bin k adapts when (frame + k) is a multiple of `every`; its
                 // own update counter then is (frame + k) / every.
