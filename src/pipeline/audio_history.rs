@@ -82,18 +82,29 @@ impl AudioHistory {
             ));
         }
         let data = &self.channels[ch];
-        for (i, o) in out.iter_mut().enumerate() {
-            let idx = from + i as i64;
-            *o = if idx < 0 {
-                0.0
-            } else if (idx as u64) < self.start {
-                return Err(format!(
-                    "sample {idx} already discarded (oldest kept is {})",
-                    self.start
-                ));
-            } else {
-                data[(idx as u64 - self.start) as usize]
-            };
+        // Before sample 0: the zero prepad; the rest is two contiguous runs of the ring.
+        let zeros = ((-from).max(0) as usize).min(out.len());
+        out[..zeros].fill(0.0);
+        if zeros == out.len() {
+            return Ok(());
+        }
+        let first = (from + zeros as i64) as u64;
+        if first < self.start {
+            return Err(format!(
+                "sample {first} already discarded (oldest kept is {})",
+                self.start
+            ));
+        }
+        let offset = (first - self.start) as usize;
+        let rest = &mut out[zeros..];
+        let (a, b) = data.as_slices();
+        let n = rest.len();
+        if offset >= a.len() {
+            rest.copy_from_slice(&b[offset - a.len()..offset - a.len() + n]);
+        } else {
+            let in_a = (a.len() - offset).min(n);
+            rest[..in_a].copy_from_slice(&a[offset..offset + in_a]);
+            rest[in_a..].copy_from_slice(&b[..n - in_a]);
         }
         Ok(())
     }
@@ -117,5 +128,23 @@ mod tests {
         let mut tail = [1.0; 3];
         h.read(0, 10, &mut tail).unwrap();
         assert_eq!(tail, [0.0; 3]);
+    }
+
+    #[test]
+    fn reads_across_the_ring_wrap() {
+        // Appending past the capacity drains the front, so the deque's storage wraps around.
+        let mut h = AudioHistory::new(1, 6);
+        for i in 0..40 {
+            h.append_interleaved(&[i as f32]);
+            let from = i64::from(i) - 5;
+            let mut out = [f64::NAN; 6];
+            h.read(0, from, &mut out).unwrap();
+            let want: Vec<f64> = (from..=i64::from(i)).map(|x| x.max(-1) as f64).collect();
+            let want: Vec<f64> = want
+                .iter()
+                .map(|&x| if x < 0.0 { 0.0 } else { x })
+                .collect();
+            assert_eq!(out.to_vec(), want, "reading {from}..={i}");
+        }
     }
 }
