@@ -80,7 +80,7 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
     let me = guard.id();
     let (mut sink, mut inbound) = socket.split();
     // Subscribe before the welcome so nothing produced after it is missed.
-    let mut outputs = session.subscribe();
+    let mut subscription = session.subscribe();
     let mut selection = OutputSelection::default();
     if sink.send(json(&welcome(&session))).await.is_err() {
         return;
@@ -99,7 +99,11 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
             msg = inbound.next() => {
                 let reply = match msg {
                     Some(Ok(Message::Binary(bytes))) => on_audio(&session, me, &bytes),
-                    Some(Ok(Message::Text(text))) => on_text(&session, me, text.as_str(), &mut selection),
+                    Some(Ok(Message::Text(text))) => {
+                        let reply = on_text(&session, me, text.as_str(), &mut selection);
+                        subscription.want(&selection);
+                        reply
+                    }
                     Some(Ok(Message::Ping(_) | Message::Pong(_))) => None,
                     Some(Ok(Message::Close(_))) | None => break,
                     Some(Err(e)) => {
@@ -125,7 +129,7 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
                     break;
                 }
             }
-            out = outputs.recv() => match out {
+            out = subscription.outputs.recv() => match out {
                 Ok(out) => {
                     if let Output::Closed { state, reason } = out.as_ref() {
                         let _ = sink.send(close(*state, reason)).await;

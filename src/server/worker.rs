@@ -116,6 +116,13 @@ impl<'a> Publisher<'a> {
     }
 
     fn emit(&mut self, e: PipelineEvent) {
+        // Audio and measurements nobody subscribed to are not broadcast at all.
+        let interest = self.session.interest();
+        match &e {
+            PipelineEvent::Audio { .. } if !interest.audio() => return,
+            PipelineEvent::Measurements(_) if !interest.measurements() => return,
+            _ => {}
+        }
         let out = match e {
             PipelineEvent::Tracks { step, line } => {
                 let snap = TracksSnapshot {

@@ -28,8 +28,10 @@ use super::engine::Engine;
 use super::metrics::{ServerMetrics, SessionCounters};
 use super::worker;
 
+mod interest;
 mod messages;
 
+pub use interest::{Interest, Subscription};
 pub use messages::{ControlError, Input, Output, Rejection};
 
 /// Identifies one attached client within its session (errors are addressed to it).
@@ -101,6 +103,7 @@ pub struct Session {
     settings: RwLock<PipelineConfig>,
     inbox: Mutex<Inbox>,
     outputs: broadcast::Sender<Arc<Output>>,
+    interest: Arc<Interest>,
     life: Mutex<Life>,
     history: Mutex<VecDeque<TracksSnapshot>>,
     live_labels: Mutex<Vec<Label>>,
@@ -181,6 +184,7 @@ impl SessionHandle {
                 next_sample: 0,
             }),
             outputs,
+            interest: Arc::default(),
             life: Mutex::new(Life {
                 state: SessionState::Running,
                 error: None,
@@ -321,9 +325,15 @@ impl Session {
             .unwrap_or_default()
     }
 
-    /// A receiver of everything the session produces from now on.
-    pub fn subscribe(&self) -> broadcast::Receiver<Arc<Output>> {
-        self.outputs.subscribe()
+    /// A receiver of everything the session produces from now on, counted as wanting every
+    /// output until it says what it wants.
+    pub fn subscribe(&self) -> Subscription {
+        Subscription::new(self.outputs.subscribe(), self.interest.clone())
+    }
+
+    /// Which optional outputs some subscriber wants (the worker skips the others).
+    pub fn interest(&self) -> &Interest {
+        &self.interest
     }
 
     fn closed_rejection(&self) -> Rejection {

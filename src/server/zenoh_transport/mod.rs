@@ -66,6 +66,7 @@ impl Shared {
         if !fresh {
             return;
         }
+        // Zenoh subscribers are not known here: the fan-out publishes every output.
         let outputs = s.subscribe();
         let admin = self.registry.config().admin_key.clone();
         let subscriber = self

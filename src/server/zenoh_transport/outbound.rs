@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use tokio::sync::broadcast::Receiver;
+use crate::server::session::Subscription;
 use tokio::sync::broadcast::error::RecvError;
 use zenoh::bytes::Encoding;
 use zenoh::pubsub::Subscriber;
@@ -23,12 +23,12 @@ use super::{Shared, ZENOH_CLIENT};
 pub(super) async fn fan_out(
     shared: Arc<Shared>,
     s: SessionHandle,
-    mut outputs: Receiver<Arc<Output>>,
+    mut subscription: Subscription,
     subscriber: Option<Subscriber<()>>,
 ) {
     let events = output_events(s.id());
     loop {
-        match outputs.recv().await {
+        match subscription.outputs.recv().await {
             Ok(out) => {
                 let last = matches!(out.as_ref(), Output::Closed { .. });
                 if let Some((key, payload, encoding)) = encode(&s, &out, &events) {
