@@ -15,6 +15,7 @@ impl Separator {
         if n == 0 {
             return;
         }
+        self.rls_constants();
         for k in self.k_lo..self.k_hi {
             self.fixed_outputs(k);
             self.adaptation_weights(k);
@@ -37,6 +38,21 @@ impl Separator {
             s.power = POWER_SMOOTHING * s.power + (1.0 - POWER_SMOOTHING) * e;
             s.steering_changed = false;
             s.constraints_changed = false;
+        }
+    }
+
+    /// The canceller's per-frame constants: the forgetting per update and each stream's norm
+    /// bound (its steering's norm is the same in every bin: the walk only turns phases).
+    fn rls_constants(&mut self) {
+        let r = &self.cfg.rls;
+        let w = &mut self.work;
+        w.rls_forgetting = r.forgetting.powi(r.update_every.max(1) as i32);
+        w.max_norm2.clear();
+        for (i, s) in self.streams.iter().enumerate() {
+            let m = self.groups[s.group].channels.len();
+            let a = w.walk[s.group].get(i * m..(i + 1) * m).unwrap_or(&[]);
+            let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
+            w.max_norm2.push(r.max_norm_ratio.powi(2) / an.max(1e-300));
         }
     }
 
@@ -149,12 +165,11 @@ impl Separator {
                 // own update counter then is (frame + k) / every.
                 let every = self.cfg.rls.update_every.max(1);
                 let phase = s.leak_index.wrapping_add(k);
-                if phase.is_multiple_of(every) {
-                    let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
+                if every == 1 || phase.is_multiple_of(every) {
                     let step = RlsStep {
-                        forgetting: self.cfg.rls.forgetting.powi(every as i32),
+                        forgetting: w.rls_forgetting,
                         leakage: self.cfg.rls.leakage,
-                        max_norm2: self.cfg.rls.max_norm_ratio.powi(2) / an.max(1e-300),
+                        max_norm2: w.max_norm2[i],
                     };
                     let ok = rls::adapt(
                         st,

@@ -68,6 +68,10 @@ struct Work {
     w: Vec<Complex>,
     w2: Vec<Complex>,
     post: Vec<PostState>,
+    /// The canceller's forgetting per update this frame.
+    rls_forgetting: f64,
+    /// Per stream: the bound on the canceller's squared norm this frame.
+    max_norm2: Vec<f64>,
     /// Per stream: prior weight in the post-filter's competition for the bins.
     priors: Vec<f64>,
     gains: Vec<f64>,
@@ -361,9 +365,12 @@ impl Separator {
     fn load_input(&mut self, spectra: &MultiSpectrum) {
         let (bins, ch) = (self.bins, self.channels);
         let y = &mut self.work.y;
-        y.fill(Complex::new(0.0, 0.0));
         let nb = bins.min(spectra.bins());
-        for c in 0..ch.min(spectra.channels()) {
+        let nc = ch.min(spectra.channels());
+        if nb < bins || nc < ch {
+            y.fill(Complex::new(0.0, 0.0));
+        }
+        for c in 0..nc {
             for (k, v) in spectra.channel(c)[..nb].iter().enumerate() {
                 y[k * ch + c] = sanitise(*v);
             }
