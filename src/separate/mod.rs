@@ -11,7 +11,8 @@
 //!   while i is quiet (per-frame presence from the tracker, refined per bin) ([`rls`]);
 //!   or an MVDR ([`mvdr`]), or plain delay-and-sum as the baseline;
 //! * post-filter: a binary or soft mask from all labels' outputs, applied to the beamformer output
-//!   or to the reference microphone ([`postfilter`]);
+//!   or to the reference microphone ([`postfilter`]), then in the bins the array cannot resolve
+//!   between labels, regrouped by each label's harmonic comb ([`harmonic`]);
 //! * lifecycle: fade-in at birth, grace period when missing, fade-out at death ([`lifecycle`]).
 //!
 //! The caller does the STFT (`dsp::StreamingStft` with [`Separator::frame_geometry`]) and one
@@ -21,6 +22,7 @@
 pub mod blocking;
 pub mod cholesky;
 mod config;
+pub mod harmonic;
 pub mod lifecycle;
 pub mod mvdr;
 pub mod null_steering;
@@ -31,8 +33,8 @@ pub mod steering;
 mod stream;
 
 pub use config::{
-    AdaptationConfig, BeamformerKind, ConfigError, LifecycleConfig, MicSelection, MvdrConfig,
-    PostFilterConfig, PostFilterKind, PostFilterTarget, RlsConfig, SeparatorConfig,
+    AdaptationConfig, BeamformerKind, ConfigError, HarmonicConfig, LifecycleConfig, MicSelection,
+    MvdrConfig, PostFilterConfig, PostFilterKind, PostFilterTarget, RlsConfig, SeparatorConfig,
 };
 pub use separator::Separator;
 pub use steering::Steering;

@@ -82,6 +82,11 @@ impl PostFilter {
         envelope_gain.clamp(0.0, 1.0) * (self.presence_floor + (1.0 - self.presence_floor) * p)
     }
 
+    /// The smallest gain.
+    pub fn floor(&self) -> f64 {
+        self.floor
+    }
+
     /// Whether any gain is applied at all.
     pub fn enabled(&self) -> bool {
         self.kind != PostFilterKind::None

@@ -5,6 +5,7 @@ use super::{POWER_SMOOTHING, Separator};
 use crate::dsp::Complex;
 use crate::label::Label;
 use crate::separate::config::{BeamformerKind, PostFilterTarget};
+use crate::separate::harmonic::{self, Pitch};
 use crate::separate::mvdr;
 use crate::separate::rls::{self, RlsStep};
 
@@ -22,7 +23,7 @@ impl Separator {
             for i in 0..n {
                 self.beamform(k, i);
             }
-            self.post_filter(k, out);
+            self.post_filter(k);
             if k + 1 < self.k_hi {
                 let w = &mut self.work;
                 for g in 0..self.groups.len() {
@@ -34,6 +35,7 @@ impl Separator {
                 }
             }
         }
+        self.write_bins(out);
         for (s, e) in self.streams.iter_mut().zip(&self.work.energy) {
             s.power = POWER_SMOOTHING * s.power + (1.0 - POWER_SMOOTHING) * e;
             s.steering_changed = false;
@@ -261,9 +263,16 @@ impl Separator {
         }
     }
 
-    /// Post-filter gains at bin `k`; writes every stream's output bin into `out`.
-    fn post_filter(&mut self, k: usize, out: &mut [(Label, Vec<Complex>)]) {
+    /// Post-filter gains at bin `k`, kept with the beamformer outputs for [`Self::write_bins`].
+    fn post_filter(&mut self, k: usize) {
+        let n = self.streams.len();
         let w = &mut self.work;
+        if k == self.k_lo {
+            let len = self.bins * n;
+            w.frame_gains.resize(len, 0.0);
+            w.frame_bf.resize(len, Complex::new(0.0, 0.0));
+            w.frame_unresolved.resize(len, 0.0);
+        }
         for (p, s) in w.post.iter_mut().zip(&self.streams) {
             *p = s.post[k];
         }
@@ -275,29 +284,114 @@ impl Separator {
             (yref, &mut self.ref_power[k]),
             &mut w.gains,
         );
+        for (s, p) in self.streams.iter_mut().zip(&w.post) {
+            s.post[k] = *p;
+        }
+        w.frame_gains[k * n..(k + 1) * n].copy_from_slice(&w.gains[..n]);
+        w.frame_bf[k * n..(k + 1) * n].copy_from_slice(&w.bf[..n]);
+        if self.harmonic.enabled() && self.post.enabled() {
+            // Each stream's claim is as ambiguous as its least resolved audible competitor; the
+            // same measure weighs the bins its F0 is read from.
+            let loading = self.cfg.null_loading;
+            for (i, s) in self.streams.iter().enumerate() {
+                let g = s.group;
+                let m = self.groups[g].channels.len();
+                let a = &w.walk[g][i * m..(i + 1) * m];
+                let mut u: f64 = 0.0;
+                if w.priors[i] > 0.0 {
+                    for j in (0..n).filter(|&j| j != i && w.priors[j] > 0.0) {
+                        u = u.max(harmonic::leakage(
+                            a,
+                            &w.walk[g][j * m..(j + 1) * m],
+                            loading,
+                        ));
+                    }
+                }
+                w.frame_unresolved[k * n + i] = self.harmonic.unresolved(u);
+            }
+        }
+    }
+
+    /// After the frame's bins: regroups the unresolved bins by harmonic evidence, then writes
+    /// every stream's output bins into `out` (and scales the recorded filters).
+    fn write_bins(&mut self, out: &mut [(Label, Vec<Complex>)]) {
+        let n = self.streams.len();
         let to_ref =
             self.cfg.post_filter.apply_to == PostFilterTarget::ReferenceMic && self.post.enabled();
-        let ch = self.channels;
-        for (((s, p), (g, b)), (_, o)) in self
-            .streams
-            .iter_mut()
-            .zip(&w.post)
-            .zip(w.gains.iter().zip(&w.bf))
-            .zip(out.iter_mut())
-        {
-            s.post[k] = *p;
-            let scale = g * s.gain;
-            o[k] = if to_ref { yref * scale } else { b * scale };
-            if self.record {
-                let f = &mut s.filters[k * ch..(k + 1) * ch];
-                if to_ref {
-                    f.fill(Complex::new(0.0, 0.0));
-                    f[self.reference] = Complex::new(1.0, 0.0);
-                }
-                for x in f.iter_mut() {
-                    *x *= scale;
+        if self.harmonic.enabled() && self.post.enabled() {
+            self.regroup_harmonic(to_ref);
+        }
+        let (ch, rf) = (self.channels, self.reference);
+        let w = &self.work;
+        for k in self.k_lo..self.k_hi {
+            let yref = w.y[k * ch + rf];
+            for (i, (s, (_, o))) in self.streams.iter_mut().zip(out.iter_mut()).enumerate() {
+                let scale = w.frame_gains[k * n + i] * s.gain;
+                o[k] = if to_ref {
+                    yref * scale
+                } else {
+                    w.frame_bf[k * n + i] * scale
+                };
+                if self.record {
+                    let f = &mut s.filters[k * ch..(k + 1) * ch];
+                    if to_ref {
+                        f.fill(Complex::new(0.0, 0.0));
+                        f[rf] = Complex::new(1.0, 0.0);
+                    }
+                    for x in f.iter_mut() {
+                        *x *= scale;
+                    }
                 }
             }
+        }
+    }
+
+    /// Estimates each stream's F0 from its resolved bins and regroups the unresolved ones.
+    fn regroup_harmonic(&mut self, to_ref: bool) {
+        let n = self.streams.len();
+        let (ch, rf) = (self.channels, self.reference);
+        let w = &mut self.work;
+        w.mag.resize(self.k_hi, 0.0);
+        w.reliability.resize(self.k_hi, 0.0);
+        w.mag[..self.k_lo].fill(0.0);
+        w.reliability[..self.k_lo].fill(0.0);
+        w.pitch.clear();
+        for i in 0..n {
+            for k in self.k_lo..self.k_hi {
+                let g = w.frame_gains[k * n + i];
+                let v = if to_ref {
+                    w.y[k * ch + rf]
+                } else {
+                    w.frame_bf[k * n + i]
+                };
+                w.mag[k] = g * v.norm();
+                let r = 1.0 - w.frame_unresolved[k * n + i];
+                w.reliability[k] = r * r;
+            }
+            w.pitch.push(if w.priors[i] > 0.0 {
+                self.harmonic.pitch(&w.mag, &w.reliability)
+            } else {
+                Pitch::default()
+            });
+        }
+        w.ownership.resize(n, 0.0);
+        w.evidence.resize(n, 0.0);
+        self.harmonic.ownership(&w.pitch, &mut w.ownership);
+        let floor = self.post.floor();
+        for k in self.k_lo..self.k_hi {
+            let u = &w.frame_unresolved[k * n..(k + 1) * n];
+            if u.iter().all(|&x| x <= 0.0) {
+                continue;
+            }
+            for ((e, p), o) in w.evidence.iter_mut().zip(&w.pitch).zip(&w.ownership) {
+                *e = o * self.harmonic.membership(p.f0, k);
+            }
+            self.harmonic.regroup(
+                &mut w.frame_gains[k * n..(k + 1) * n],
+                u,
+                &w.evidence,
+                floor,
+            );
         }
     }
 }

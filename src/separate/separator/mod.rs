@@ -5,6 +5,7 @@ mod bins;
 
 use super::Target;
 use super::config::{ConfigError, SeparatorConfig};
+use super::harmonic::{Harmonic, Pitch};
 use super::lifecycle::Timing;
 use super::null_steering::NullSteering;
 use super::postfilter::{PostFilter, PostState};
@@ -75,6 +76,21 @@ struct Work {
     /// Per stream: prior weight in the post-filter's competition for the bins.
     priors: Vec<f64>,
     gains: Vec<f64>,
+    /// This frame's post-filter gains, bin-major (`streams` values per bin), written out once the
+    /// harmonic grouping has seen the whole frame.
+    frame_gains: Vec<f64>,
+    /// This frame's beamformer outputs, bin-major.
+    frame_bf: Vec<Complex>,
+    /// How unresolved each stream's claim is per bin (harmonic grouping), bin-major.
+    frame_unresolved: Vec<f64>,
+    /// Per-bin scratch of the F0 analysis: a stream's magnitude and the bins' reliability.
+    mag: Vec<f64>,
+    reliability: Vec<f64>,
+    /// Per stream: this frame's pitch, how much of it is the stream's own, and (per bin) its
+    /// harmonic evidence.
+    pitch: Vec<Pitch>,
+    ownership: Vec<f64>,
+    evidence: Vec<f64>,
     energy: Vec<f64>,
     present: Vec<bool>,
 }
@@ -100,6 +116,7 @@ pub struct Separator {
     domega: f64,
     timing: Timing,
     post: PostFilter,
+    harmonic: Harmonic,
     psd: Vec<f64>,
     psd_ready: bool,
     /// Smoothed power of the reference microphone per bin (post-filter).
@@ -133,6 +150,7 @@ impl Separator {
                 fade_out: 1,
             },
             post: PostFilter::new(&cfg.post_filter, 1.0),
+            harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0),
             psd: Vec::new(),
             psd_ready: false,
             ref_power: Vec::new(),
@@ -337,6 +355,7 @@ impl Separator {
         let frames_per_s = self.fs / geom.hop as f64;
         self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
         self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
+        self.harmonic = Harmonic::new(&self.cfg.post_filter.harmonic, hz_per_bin);
         let maxm = self
             .groups
             .iter()
