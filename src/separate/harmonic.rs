@@ -75,6 +75,11 @@ impl Harmonic {
         leakage.clamp(0.0, 1.0).powf(self.leakage_exponent)
     }
 
+    /// One past the highest bin [`Harmonic::pitch`] reads (with interpolation).
+    pub fn top_bin(&self) -> usize {
+        self.k_max.max(0.0) as usize + 2
+    }
+
     /// Whether the grouping changes anything.
     pub fn enabled(&self) -> bool {
         self.boost > 0.0 && !self.candidates.is_empty()
@@ -90,7 +95,8 @@ impl Harmonic {
             return Pitch::default();
         }
         let at = |v: &[f64], x: f64| {
-            let i = x.floor() as usize;
+            // x >= 0, so truncation is the floor (and needs no libm call).
+            let i = x as usize;
             let t = x - i as f64;
             v[i] * (1.0 - t) + v[(i + 1).min(v.len() - 1)] * t
         };
@@ -200,7 +206,7 @@ pub fn leakage(a: &[Complex], b: &[Complex], loading: f64) -> f64 {
     if aa <= 0.0 || bb <= 0.0 {
         return 0.0;
     }
-    let c = (ab.norm() / (aa * bb).sqrt()).min(1.0);
+    let c = (ab.norm_sqr() / (aa * bb)).sqrt().min(1.0);
     // Eigenvalues 1 +- c of the normalised Gram matrix, each passed as lambda / (lambda + delta).
     let e1 = (1.0 + c) / (1.0 + c + loading);
     let e2 = (1.0 - c) / (1.0 - c + loading);

@@ -36,6 +36,7 @@ impl Separator {
             }
         }
         self.write_bins(out);
+        self.work.pairs_stale = false;
         for (s, e) in self.streams.iter_mut().zip(&self.work.energy) {
             s.power = POWER_SMOOTHING * s.power + (1.0 - POWER_SMOOTHING) * e;
             s.steering_changed = false;
@@ -293,21 +294,32 @@ impl Separator {
             // Each stream's claim is as ambiguous as its least resolved audible competitor; the
             // same measure weighs the bins its F0 is read from.
             let loading = self.cfg.null_loading;
-            for (i, s) in self.streams.iter().enumerate() {
-                let g = s.group;
-                let m = self.groups[g].channels.len();
-                let a = &w.walk[g][i * m..(i + 1) * m];
-                let mut u: f64 = 0.0;
-                if w.priors[i] > 0.0 {
-                    for j in (0..n).filter(|&j| j != i && w.priors[j] > 0.0) {
-                        u = u.max(harmonic::leakage(
-                            a,
-                            &w.walk[g][j * m..(j + 1) * m],
-                            loading,
-                        ));
+            let pairs = &mut w.pair_unresolved[k * n * n..(k + 1) * n * n];
+            if w.pairs_stale {
+                for (i, s) in self.streams.iter().enumerate() {
+                    let g = s.group;
+                    let m = self.groups[g].channels.len();
+                    let a = &w.walk[g][i * m..(i + 1) * m];
+                    for j in 0..n {
+                        pairs[i * n + j] = if j == i {
+                            0.0
+                        } else {
+                            let b = &w.walk[g][j * m..(j + 1) * m];
+                            self.harmonic.unresolved(harmonic::leakage(a, b, loading))
+                        };
                     }
                 }
-                w.frame_unresolved[k * n + i] = self.harmonic.unresolved(u);
+            }
+            // unresolved() is monotone, so the least resolved audible competitor's value is
+            // the largest of the pairs'.
+            for i in 0..n {
+                let mut u = self.harmonic.unresolved(0.0);
+                if w.priors[i] > 0.0 {
+                    for j in (0..n).filter(|&j| j != i && w.priors[j] > 0.0) {
+                        u = u.max(pairs[i * n + j]);
+                    }
+                }
+                w.frame_unresolved[k * n + i] = u;
             }
         }
     }
@@ -356,15 +368,19 @@ impl Separator {
         w.mag[..self.k_lo].fill(0.0);
         w.reliability[..self.k_lo].fill(0.0);
         w.pitch.clear();
+        // The F0 analysis reads bins up to its top frequency only.
+        let top = self.harmonic.top_bin().min(self.k_hi);
+        w.mag.truncate(top.max(self.k_lo));
+        w.reliability.truncate(top.max(self.k_lo));
         for i in 0..n {
-            for k in self.k_lo..self.k_hi {
+            for k in self.k_lo..top {
                 let g = w.frame_gains[k * n + i];
                 let v = if to_ref {
                     w.y[k * ch + rf]
                 } else {
                     w.frame_bf[k * n + i]
                 };
-                w.mag[k] = g * v.norm();
+                w.mag[k] = g * v.norm_sqr().sqrt();
                 let r = 1.0 - w.frame_unresolved[k * n + i];
                 w.reliability[k] = r * r;
             }

@@ -69,6 +69,11 @@ struct Work {
     w: Vec<Complex>,
     w2: Vec<Complex>,
     post: Vec<PostState>,
+    /// Per bin, stream and competitor: how unresolved the stream's claim is against that
+    /// competitor (harmonic grouping); recomputed only when some steering moved.
+    pair_unresolved: Vec<f64>,
+    /// `pair_unresolved` must be recomputed this frame.
+    pairs_stale: bool,
     /// The canceller's forgetting per update this frame.
     rls_forgetting: f64,
     /// Per stream: the bound on the canceller's squared norm this frame.
