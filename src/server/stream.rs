@@ -23,7 +23,7 @@ use crate::protocol::{
 use super::app::AppState;
 use super::error::ApiError;
 use super::routes::session_access;
-use super::session::{ClientGuard, ClientId, Input, Output, SessionHandle};
+use super::session::{ClientGuard, ClientId, Input, Output, SessionHandle, Subscription};
 
 /// Version of the stream protocol (in the welcome).
 pub const PROTOCOL_VERSION: u32 = 1;
@@ -100,9 +100,7 @@ async fn run(socket: WebSocket, session: SessionHandle, guard: ClientGuard) {
                 let reply = match msg {
                     Some(Ok(Message::Binary(bytes))) => on_audio(&session, me, &bytes),
                     Some(Ok(Message::Text(text))) => {
-                        let reply = on_text(&session, me, text.as_str(), &mut selection);
-                        subscription.want(&selection);
-                        reply
+                        on_text(&session, me, text.as_str(), &mut selection, &mut subscription)
                     }
                     Some(Ok(Message::Ping(_) | Message::Pong(_))) => None,
                     Some(Ok(Message::Close(_))) | None => break,
@@ -221,6 +219,7 @@ fn on_text(
     me: ClientId,
     text: &str,
     selection: &mut OutputSelection,
+    subscription: &mut Subscription,
 ) -> Option<ErrorBody> {
     let msg = match parse_message(text) {
         Ok(m) => m,
@@ -232,6 +231,7 @@ fn on_text(
     let input = match msg {
         ClientMessage::Hello { client, outputs } => {
             tracing::debug!(session = %s.id(), client = me, name = %client, "hello");
+            subscription.want(&outputs);
             *selection = outputs;
             return None;
         }

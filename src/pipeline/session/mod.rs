@@ -211,9 +211,7 @@ impl Pipeline {
         channels: usize,
         samples: &[f32],
     ) -> Result<Vec<PipelineEvent>, InputError> {
-        let mut events = Vec::new();
-        self.push_audio_to(first_sample, channels, samples, &mut |e| events.push(e))?;
-        Ok(events)
+        collected(|sink| self.push_audio_to(first_sample, channels, samples, sink))
     }
 
     /// [`Pipeline::push_audio`] handing each event to `sink` as soon as it exists: a step's
@@ -280,9 +278,7 @@ impl Pipeline {
         &mut self,
         frame: DetectionFrame,
     ) -> Result<Vec<PipelineEvent>, InputError> {
-        let mut events = Vec::new();
-        self.push_detections_to(frame, &mut |e| events.push(e))?;
-        Ok(events)
+        collected(|sink| self.push_detections_to(frame, sink))
     }
 
     /// [`Pipeline::push_detections`] handing each event to `sink` as soon as it exists.
@@ -322,9 +318,7 @@ impl Pipeline {
         &mut self,
         frame: AudioMeasurementFrame,
     ) -> Result<Vec<PipelineEvent>, InputError> {
-        let mut events = Vec::new();
-        self.push_device_measurements_to(frame, &mut |e| events.push(e))?;
-        Ok(events)
+        collected(|sink| self.push_device_measurements_to(frame, sink))
     }
 
     /// [`Pipeline::push_device_measurements`] handing each event to `sink` as soon as it exists.
@@ -488,4 +482,13 @@ fn changed_fields(
         (a, b) if a != b => out.push(path.to_string()),
         _ => {}
     }
+}
+
+/// Runs `push` with a sink that collects its events.
+fn collected(
+    push: impl FnOnce(&mut EventSink<'_>) -> Result<(), InputError>,
+) -> Result<Vec<PipelineEvent>, InputError> {
+    let mut events = Vec::new();
+    push(&mut |e| events.push(e))?;
+    Ok(events)
 }

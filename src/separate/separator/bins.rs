@@ -363,15 +363,14 @@ impl Separator {
         let n = self.streams.len();
         let (ch, rf) = (self.channels, self.reference);
         let w = &mut self.work;
-        w.mag.resize(self.k_hi, 0.0);
-        w.reliability.resize(self.k_hi, 0.0);
-        w.mag[..self.k_lo].fill(0.0);
-        w.reliability[..self.k_lo].fill(0.0);
         w.pitch.clear();
-        // The F0 analysis reads bins up to its top frequency only.
+        // The F0 analysis reads bins up to its top frequency only; those below k_lo stay zero.
         let top = self.harmonic.top_bin().min(self.k_hi);
-        w.mag.truncate(top.max(self.k_lo));
-        w.reliability.truncate(top.max(self.k_lo));
+        let len = top.max(self.k_lo);
+        w.mag.clear();
+        w.mag.resize(len, 0.0);
+        w.reliability.clear();
+        w.reliability.resize(len, 0.0);
         for i in 0..n {
             for k in self.k_lo..top {
                 let g = w.frame_gains[k * n + i];
