@@ -302,13 +302,28 @@ async fn raw_request(host: &str, req: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// A pipeline that panics once the audio reaches `at`.
-struct Exploding {
+/// A pipeline with test hooks: `on_audio` sees each audio block's first sample before the
+/// pipeline does; `on_event` passes each event on to the sink (and may act around it).
+struct Hooked {
     inner: Pipeline,
-    at: u64,
+    on_audio: Box<dyn FnMut(u64) + Send>,
+    on_event: Box<EventHook>,
 }
 
-impl Engine for Exploding {
+/// What [`Hooked`] does with each event: pass it on to the sink, and act around that.
+type EventHook = dyn FnMut(PipelineEvent, &mut EventSink<'_>) + Send;
+
+impl Hooked {
+    fn new(inner: Pipeline) -> Self {
+        Self {
+            inner,
+            on_audio: Box::new(|_| {}),
+            on_event: Box::new(|e, sink| sink(e)),
+        }
+    }
+}
+
+impl Engine for Hooked {
     fn push_audio(
         &mut self,
         first: u64,
@@ -316,22 +331,28 @@ impl Engine for Exploding {
         s: &[f32],
         sink: &mut EventSink<'_>,
     ) -> Result<(), InputError> {
-        assert!(first < self.at, "synthetic failure at sample {first}");
-        self.inner.push_audio_to(first, ch, s, sink)
+        (self.on_audio)(first);
+        let on_event = &mut self.on_event;
+        self.inner
+            .push_audio_to(first, ch, s, &mut |e| on_event(e, &mut *sink))
     }
     fn push_detections(
         &mut self,
         f: DetectionFrame,
         sink: &mut EventSink<'_>,
     ) -> Result<(), InputError> {
-        self.inner.push_detections_to(f, sink)
+        let on_event = &mut self.on_event;
+        self.inner
+            .push_detections_to(f, &mut |e| on_event(e, &mut *sink))
     }
     fn push_device_measurements(
         &mut self,
         f: AudioMeasurementFrame,
         sink: &mut EventSink<'_>,
     ) -> Result<(), InputError> {
-        self.inner.push_device_measurements_to(f, sink)
+        let on_event = &mut self.on_event;
+        self.inner
+            .push_device_measurements_to(f, &mut |e| on_event(e, &mut *sink))
     }
     fn set_layout(&mut self, l: avsep::geometry::Layout) -> Result<(), ConfigError> {
         self.inner.set_layout(l)
@@ -340,7 +361,29 @@ impl Engine for Exploding {
         self.inner.update_config(c)
     }
     fn finish(&mut self, sink: &mut EventSink<'_>) {
-        self.inner.finish_to(sink)
+        let on_event = &mut self.on_event;
+        self.inner.finish_to(&mut |e| on_event(e, &mut *sink))
+    }
+}
+
+/// The registry's description of a session made by hand (for a hooked engine).
+fn hand_made_spec(
+    server: &TestServer,
+    id: &str,
+    name: &str,
+    token: &str,
+    sc: &avsep::scene::Scene,
+    pipeline: &Pipeline,
+) -> SessionSpec {
+    SessionSpec {
+        id: id.into(),
+        name: Some(name.into()),
+        token: token.into(),
+        step_s: pipeline.clock().step_s(),
+        audio_delay_samples: pipeline.audio_delay_samples(),
+        layout: sc.layout.clone(),
+        settings: settings(8),
+        limits: server.registry.config().limits.clone(),
     }
 }
 
@@ -353,26 +396,18 @@ async fn a_panicking_pipeline_fails_its_session_only() {
     // The failing session, made through the registry with its own engine.
     let pipeline = Pipeline::new(sc.layout.clone(), settings(8), 8).unwrap();
     let token = "f".repeat(64);
-    let spec = SessionSpec {
-        id: "badbadbadbadbad0".into(),
-        name: Some("exploding".into()),
-        token: token.clone(),
-        step_s: pipeline.clock().step_s(),
-        audio_delay_samples: pipeline.audio_delay_samples(),
-        layout: sc.layout.clone(),
-        settings: settings(8),
-        limits: server.registry.config().limits.clone(),
-    };
-    server
-        .registry
-        .insert(
-            spec,
-            Exploding {
-                inner: pipeline,
-                at: 16000,
-            },
-        )
-        .unwrap();
+    let spec = hand_made_spec(
+        &server,
+        "badbadbadbadbad0",
+        "exploding",
+        &token,
+        &sc,
+        &pipeline,
+    );
+    let mut engine = Hooked::new(pipeline);
+    engine.on_audio =
+        Box::new(|first| assert!(first < 16000, "synthetic failure at sample {first}"));
+    server.registry.insert(spec, engine).unwrap();
     let bad_url = format!("ws://{host}/v1/sessions/badbadbadbadbad0/stream");
     let good = server.create(&sc, settings(8), None).await;
 
@@ -444,70 +479,6 @@ async fn a_panicking_pipeline_fails_its_session_only() {
     server.stop().await;
 }
 
-/// A pipeline that stops after its first step's tracks until the test lets it go on, like a
-/// separation that takes long.
-struct HeldAfterTracks {
-    inner: Pipeline,
-    gate: std::sync::mpsc::Receiver<()>,
-    held: bool,
-}
-
-impl HeldAfterTracks {
-    /// Passes events on; after the first tracks, waits for the test.
-    fn hold<'a>(
-        gate: &'a std::sync::mpsc::Receiver<()>,
-        held: &'a mut bool,
-        sink: &'a mut EventSink<'_>,
-    ) -> impl FnMut(PipelineEvent) + 'a {
-        move |e| {
-            let tracks = matches!(e, PipelineEvent::Tracks { .. });
-            sink(e);
-            if tracks && !*held {
-                *held = true;
-                let _ = gate.recv_timeout(Duration::from_secs(20));
-            }
-        }
-    }
-}
-
-impl Engine for HeldAfterTracks {
-    fn push_audio(
-        &mut self,
-        first: u64,
-        ch: usize,
-        s: &[f32],
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let mut sink = Self::hold(&self.gate, &mut self.held, sink);
-        self.inner.push_audio_to(first, ch, s, &mut sink)
-    }
-    fn push_detections(
-        &mut self,
-        f: DetectionFrame,
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let mut sink = Self::hold(&self.gate, &mut self.held, sink);
-        self.inner.push_detections_to(f, &mut sink)
-    }
-    fn push_device_measurements(
-        &mut self,
-        f: AudioMeasurementFrame,
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let mut sink = Self::hold(&self.gate, &mut self.held, sink);
-        self.inner.push_device_measurements_to(f, &mut sink)
-    }
-    fn set_layout(&mut self, l: avsep::geometry::Layout) -> Result<(), ConfigError> {
-        self.inner.set_layout(l)
-    }
-    fn update_config(&mut self, c: PipelineConfig) -> Result<(), ConfigError> {
-        self.inner.update_config(c)
-    }
-    fn finish(&mut self, sink: &mut EventSink<'_>) {
-        self.inner.finish_to(sink)
-    }
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_steps_tracks_are_published_before_the_rest_of_its_work() {
     let server = TestServer::start(ServerConfig::default()).await;
@@ -516,22 +487,20 @@ async fn a_steps_tracks_are_published_before_the_rest_of_its_work() {
     let pipeline = Pipeline::new(sc.layout.clone(), settings(8), 8).unwrap();
     let token = "e".repeat(64);
     let id = "0e1d0e1d0e1d0e1d";
-    let spec = SessionSpec {
-        id: id.into(),
-        name: Some("held".into()),
-        token: token.clone(),
-        step_s: pipeline.clock().step_s(),
-        audio_delay_samples: pipeline.audio_delay_samples(),
-        layout: sc.layout.clone(),
-        settings: settings(8),
-        limits: server.registry.config().limits.clone(),
-    };
-    let (release, gate) = std::sync::mpsc::channel();
-    let engine = HeldAfterTracks {
-        inner: pipeline,
-        gate,
-        held: false,
-    };
+    let spec = hand_made_spec(&server, id, "held", &token, &sc, &pipeline);
+    // After its first step's tracks the engine stops until the test lets it go on, like a
+    // separation that takes long.
+    let (release, gate) = std::sync::mpsc::channel::<()>();
+    let mut held = false;
+    let mut engine = Hooked::new(pipeline);
+    engine.on_event = Box::new(move |e, sink| {
+        let tracks = matches!(e, PipelineEvent::Tracks { .. });
+        sink(e);
+        if tracks && !held {
+            held = true;
+            let _ = gate.recv_timeout(Duration::from_secs(20));
+        }
+    });
     server.registry.insert(spec, engine).unwrap();
     let url = format!("ws://{host}/v1/sessions/{id}/stream");
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
