@@ -1,8 +1,9 @@
 //! GCC-PHAT of every microphone pair of one array, tabulated on a fine lag grid.
 //!
 //! Per frame: the band bins of each channel are whitened (PHAT, Y / |Y|^beta), each pair's cross-spectrum
-//! W_a W_b^* is inverse transformed, the integer lags inside the physically possible range
-//! |tau| <= d_ab / c are kept and interpolated to `interpolation` points per sample with a
+//! W_a W_b^* is transformed to the integer lags inside the physically possible range
+//! |tau| <= d_ab / c (sub-band by sub-band, so masked re-tabulations are cheap: `subband_lags`),
+//! and those are interpolated to `interpolation` points per sample with a
 //! Kaiser-windowed sinc (band-limited interpolation; the band stays well below Nyquist). With the
 //! forward FFT kernel e^{-j omega t}, a source with times of flight tau_a, tau_b gives
 //! W_a W_b^* ~ e^{-j omega (tau_a - tau_b)}, so the GCC r_ab(tau) = sum_k Re(W_a W_b^* e^{+j omega_k tau})
@@ -10,12 +11,11 @@
 //! normalised by the number of band bins, so r = 1 for a perfectly coherent pair.
 
 use std::f64::consts::PI;
-use std::sync::Arc;
-
-use realfft::{ComplexToReal, RealFftPlanner};
 
 use crate::dsp::{Complex, MultiSpectrum};
 use crate::geometry::MicArray;
+
+use super::subband_lags::SubbandLags;
 
 /// Sinc taps on each side of the interpolation point.
 const SINC_TAPS: usize = 8;
@@ -37,6 +37,18 @@ pub(crate) struct Pair {
     pub half: usize,
 }
 
+/// The normalisation of a pair's GCC with weighted bin norms `t1` (sum w n1) and `t2`
+/// (sum w^2 n2), adding its share of the null variance to `null_var`: each bin adds a cosine
+/// of uniform phase (variance w^2 / 2) under incoherence.
+fn null_term(t1: f64, t2: f64, null_var: &mut f64) -> f64 {
+    if t1 > 0.0 {
+        *null_var += t2 / (2.0 * t1 * t1);
+        1.0 / (2.0 * t1)
+    } else {
+        0.0
+    }
+}
+
 /// Linear interpolation of the concatenated tables at absolute fine position `pos` (>= 0).
 #[inline(always)]
 pub(crate) fn lerp(table: &[f64], pos: f64) -> f64 {
@@ -56,6 +68,8 @@ pub(crate) struct GccSettings {
     /// The smoothed cross-spectrum is this frame's plus `smoothing` times the previous smoothed
     /// one (0: none).
     pub smoothing: f64,
+    /// Bins per sub-band of the masks that remove found sources.
+    pub subband_bins: usize,
 }
 
 /// GCC-PHAT tables of all pairs of one array, with the buffers to compute them in place.
@@ -83,7 +97,6 @@ pub(crate) struct GccBank {
     null_var: f64,
     /// `null_var` of the tables as computed.
     pristine_null_var: f64,
-    cross: Vec<Complex>,
     /// The band's smoothed cross-spectra, pair-major: sum over the frames since the last
     /// `forget` of decay^age times the frame's whitened cross-spectrum.
     pub smoothed: Vec<Complex>,
@@ -98,14 +111,17 @@ pub(crate) struct GccBank {
     decay: f64,
     /// Whether the smoothed cross-spectra hold nothing to carry over (start, or after `forget`).
     fresh: bool,
-    time: Vec<f64>,
     lags: Vec<f64>,
     kernels: Vec<f64>,
     /// The band's PHAT kernel K(d) = mean over band bins of cos(omega_k d), at fine offsets d >= 0
     /// (the normalised GCC of a lone, perfectly coherent source, centred on its lag).
     kernel: Vec<f64>,
-    irfft: Arc<dyn ComplexToReal<f64>>,
-    scratch: Vec<Complex>,
+    /// Sub-band contributions to the integer lags, from which every table is computed.
+    subbands: SubbandLags,
+    /// `subbands` predate this frame's cross-spectra.
+    subbands_stale: bool,
+    /// A gain of one per sub-band (the unmasked tables).
+    ones: Vec<f64>,
     window_power: f64,
     /// FFT length (samples).
     pub frame: usize,
@@ -168,6 +184,7 @@ impl GccBank {
             interpolation,
             beta,
             smoothing: decay,
+            subband_bins,
         } = settings;
         let mut pairs = Vec::new();
         let mut offset = 0;
@@ -189,8 +206,8 @@ impl GccBank {
                 kernels.push(sinc_kernel(frac - n));
             }
         }
-        let irfft = RealFftPlanner::<f64>::new().plan_fft_inverse(frame);
-        let scratch = irfft.make_scratch_vec();
+        let subbands = SubbandLags::new(band, subband_bins, frame, npairs, lag_span);
+        let ones = vec![1.0; subbands.count];
         let nb = band.1 + 1 - band.0;
         let kernel = (0..2 * max_half + 4)
             .map(|j| band_kernel(band, frame, j as f64 / interpolation as f64))
@@ -210,19 +227,18 @@ impl GccBank {
             beta,
             null_var: 0.0,
             pristine_null_var: 0.0,
-            cross: vec![Complex::new(0.0, 0.0); frame / 2 + 1],
             smoothed: vec![Complex::new(0.0, 0.0); nb * npairs],
             norm1: vec![0.0; nb * npairs],
             norm2: vec![0.0; nb * npairs],
             bin_norm: vec![0.0; nb],
             decay,
             fresh: true,
-            time: vec![0.0; frame],
             lags: vec![0.0; 2 * lag_span + 1],
             kernels,
             kernel,
-            irfft,
-            scratch,
+            subbands,
+            subbands_stale: true,
+            ones,
             window_power,
             frame,
         }
@@ -307,7 +323,9 @@ impl GccBank {
     /// [-1, 1] and equals 1 for a perfectly coherent pair whatever the exponent.
     pub fn compute(&mut self) {
         self.smooth();
-        self.tabulate(None);
+        let ones = std::mem::take(&mut self.ones);
+        self.tabulate_subbands(&ones);
+        self.ones = ones;
         self.pristine.copy_from_slice(&self.table);
         self.pristine_null_var = self.null_var;
     }
@@ -349,74 +367,71 @@ impl GccBank {
             }
         }
         self.fresh = false;
+        self.subbands_stale = true;
     }
 
-    /// Computes every pair's fine GCC table from the smoothed cross-spectra, each band bin
-    /// weighted by `mask` (all ones when `None`), and the null variance that goes with it.
-    pub fn tabulate(&mut self, mask: Option<&[f64]>) {
+    /// Recomputes every pair's fine table (and the null variance) with sub-band `b` of the band
+    /// weighted by `gains[b]` (sub-bands of [`GccBank::subband_width`] bins, the last one may be
+    /// shorter): exactly the tables of the cross-spectra masked that way. The sub-band
+    /// contributions are computed once per frame, so each call costs a weighted sum per lag
+    /// (see [`SubbandLags`]).
+    pub fn tabulate_subbands(&mut self, gains: &[f64]) {
         let nb = self.band.1 + 1 - self.band.0;
+        let npairs = self.pairs.len();
+        if self.subbands_stale {
+            for q in 0..npairs {
+                let range = q * nb..(q + 1) * nb;
+                self.subbands.rebuild(
+                    q,
+                    &self.smoothed[range.clone()],
+                    &self.norm1[range.clone()],
+                    &self.norm2[range],
+                );
+            }
+            self.subbands_stale = false;
+        }
+        let mut null_var = 0.0;
+        for q in 0..npairs {
+            let (t1, t2) = self.subbands.combine(q, gains, &mut self.lags);
+            let norm = null_term(t1, t2, &mut null_var);
+            self.lags.iter_mut().for_each(|l| *l *= norm);
+            self.interpolate(q);
+        }
+        let np = npairs.max(1) as f64;
+        self.null_var = null_var / (np * np);
+    }
+
+    /// Bins per sub-band of [`GccBank::tabulate_subbands`].
+    pub fn subband_width(&self) -> usize {
+        self.subbands.width
+    }
+
+    /// Sub-bands of [`GccBank::tabulate_subbands`].
+    pub fn subband_count(&self) -> usize {
+        self.subbands.count
+    }
+
+    /// Pair `q`'s fine table from its normalised GCC at the integer lags (`lags`).
+    fn interpolate(&mut self, q: usize) {
         let interp = self.interpolation as isize;
         let taps = 2 * SINC_TAPS;
         let lag_span = (self.lags.len() / 2) as isize;
-        let n = self.frame as isize;
-        let mut null_var = 0.0;
-        for (q, p) in self.pairs.iter().enumerate() {
-            let range = q * nb..(q + 1) * nb;
-            let (smoothed, n1, n2) = (
-                &self.smoothed[range.clone()],
-                &self.norm1[range.clone()],
-                &self.norm2[range],
-            );
-            self.cross.fill(Complex::new(0.0, 0.0));
-            let band = &mut self.cross[self.band.0..=self.band.1];
-            let (mut t1, mut t2) = (0.0, 0.0);
-            match mask {
-                Some(g) => {
-                    for k in 0..nb {
-                        band[k] = smoothed[k] * g[k];
-                        t1 += g[k] * n1[k];
-                        t2 += g[k] * g[k] * n2[k];
-                    }
-                }
-                None => {
-                    band.copy_from_slice(smoothed);
-                    t1 = n1.iter().sum();
-                    t2 = n2.iter().sum();
-                }
-            }
-            // Each bin adds a cosine of uniform phase (variance w^2 / 2) under incoherence.
-            let norm = if t1 > 0.0 {
-                null_var += t2 / (2.0 * t1 * t1);
-                1.0 / (2.0 * t1)
-            } else {
-                0.0
-            };
-            // Lengths are fixed at construction, so the transform cannot fail.
-            let _ =
-                self.irfft
-                    .process_with_scratch(&mut self.cross, &mut self.time, &mut self.scratch);
-            for (i, l) in self.lags.iter_mut().enumerate() {
-                let lag = i as isize - lag_span;
-                *l = self.time[lag.rem_euclid(n) as usize] * norm;
-            }
-            let half = p.half as isize;
-            let table = &mut self.table[p.offset..p.offset + 2 * p.half + 2];
-            for (j, t) in table.iter_mut().take(2 * p.half + 1).enumerate() {
-                let rel = j as isize - half;
-                let n0 = rel.div_euclid(interp);
-                let r = rel.rem_euclid(interp) as usize;
-                let kern = &self.kernels[r * taps..(r + 1) * taps];
-                let start = (n0 + lag_span - SINC_TAPS as isize + 1) as usize;
-                *t = kern
-                    .iter()
-                    .zip(&self.lags[start..start + taps])
-                    .map(|(k, v)| k * v)
-                    .sum();
-            }
-            table[2 * p.half + 1] = table[2 * p.half];
+        let p = self.pairs[q];
+        let half = p.half as isize;
+        let table = &mut self.table[p.offset..p.offset + 2 * p.half + 2];
+        for (j, t) in table.iter_mut().take(2 * p.half + 1).enumerate() {
+            let rel = j as isize - half;
+            let n0 = rel.div_euclid(interp);
+            let r = rel.rem_euclid(interp) as usize;
+            let kern = &self.kernels[r * taps..(r + 1) * taps];
+            let start = (n0 + lag_span - SINC_TAPS as isize + 1) as usize;
+            *t = kern
+                .iter()
+                .zip(&self.lags[start..start + taps])
+                .map(|(k, v)| k * v)
+                .sum();
         }
-        let np = self.pairs.len().max(1) as f64;
-        self.null_var = null_var / (np * np);
+        table[2 * p.half + 1] = table[2 * p.half];
     }
 
     /// Forgets the past frames' cross-spectra (after silence, or when the input jumps).
@@ -546,6 +561,7 @@ mod tests {
                 interpolation: 10,
                 beta: 1.0,
                 smoothing: 0.0,
+                subband_bins: 8,
             },
             FS,
             C,

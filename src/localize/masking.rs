@@ -44,7 +44,7 @@ pub(crate) struct SubbandMask {
     has_principal: bool,
     /// Per found source and sub-band: its dominance.
     dominance: Vec<Vec<f64>>,
-    /// Per band bin: the weight left once the sources (but one) are removed.
+    /// Per sub-band: the weight left once the sources (but one) are removed.
     mask: Vec<f64>,
     steer: Vec<Complex>,
     step: Vec<Complex>,
@@ -52,11 +52,9 @@ pub(crate) struct SubbandMask {
 }
 
 impl SubbandMask {
-    /// Sub-bands of `width` bins over the band of `bank`.
-    pub fn new(bank: &GccBank, width: usize, iterations: usize, exponent: f64, fs: f64) -> Self {
-        let nb = bank.band.1 + 1 - bank.band.0;
-        let width = width.clamp(1, nb);
-        let count = nb.div_ceil(width);
+    /// The sub-bands of `bank`.
+    pub fn new(bank: &GccBank, iterations: usize, exponent: f64, fs: f64) -> Self {
+        let (width, count) = (bank.subband_width(), bank.subband_count());
         let mics = bank
             .pairs
             .iter()
@@ -77,7 +75,7 @@ impl SubbandMask {
             principal: vec![Complex::new(0.0, 0.0); count * mics],
             has_principal: false,
             dominance: Vec::new(),
-            mask: vec![1.0; nb],
+            mask: vec![1.0; count],
             steer: vec![Complex::new(0.0, 0.0); mics],
             step: vec![Complex::new(0.0, 0.0); mics],
             next: vec![Complex::new(0.0, 0.0); mics],
@@ -128,17 +126,16 @@ impl SubbandMask {
             if Some(i) == keep {
                 continue;
             }
-            for (chunk, d) in self.mask.chunks_mut(self.width).zip(dom) {
+            for (m, d) in self.mask.iter_mut().zip(dom) {
                 let k = 1.0 - d;
-                let g = if self.exponent == self.exponent.round() && self.exponent <= 8.0 {
+                *m *= if self.exponent == self.exponent.round() && self.exponent <= 8.0 {
                     k.powi(self.exponent as i32)
                 } else {
                     k.powf(self.exponent)
                 };
-                chunk.iter_mut().for_each(|m| *m *= g);
             }
         }
-        bank.tabulate(Some(&self.mask));
+        bank.tabulate_subbands(&self.mask);
     }
 
     /// Steering vector of `delays` at the first sub-band's centre in `steer`, and its change
@@ -252,11 +249,12 @@ mod tests {
             interpolation: 10,
             beta: 0.0,
             smoothing: 0.0,
+            subband_bins: 8,
         };
         let mut bank = GccBank::new(&array, FRAME, BAND, settings, FS, C);
         bank.whiten(&synth::spectra_at(&x, FRAME, FRAME));
         bank.compute();
-        let mut mask = SubbandMask::new(&bank, 8, 8, 4.0, FS);
+        let mut mask = SubbandMask::new(&bank, 8, 4.0, FS);
         mask.start(&bank);
         let (d1, d2) = (delays(&array, &x1), delays(&array, &x2));
         mask.add(&d1);

@@ -15,6 +15,7 @@ mod geodesic;
 mod masking;
 mod noise_floor;
 mod region_contraction;
+mod subband_lags;
 #[cfg(test)]
 mod synth;
 #[cfg(test)]
@@ -189,6 +190,7 @@ impl Localizer {
                 interpolation: self.cfg.interpolation,
                 beta: self.cfg.phat_exponent,
                 smoothing: self.cfg.smoothing_decay,
+                subband_bins: self.cfg.peaks.subband_bins,
             },
             self.sample_rate,
             c,
@@ -224,7 +226,6 @@ impl Localizer {
             powers: Vec::with_capacity(self.cfg.max_candidates),
             mask: SubbandMask::new(
                 &bank,
-                self.cfg.peaks.subband_bins,
                 self.cfg.peaks.power_iterations,
                 self.cfg.peaks.mask_exponent,
                 self.sample_rate,

@@ -12,6 +12,7 @@ fn settings(smoothing: f64) -> gcc::GccSettings {
         interpolation: 10,
         beta: 1.0,
         smoothing,
+        subband_bins: 8,
     }
 }
 

@@ -295,25 +295,30 @@ impl Separator {
             // same measure weighs the bins its F0 is read from.
             let loading = self.cfg.null_loading;
             let pairs = &mut w.pair_unresolved[k * n * n..(k + 1) * n * n];
-            if w.pairs_stale {
-                for (i, s) in self.streams.iter().enumerate() {
-                    let g = s.group;
-                    let m = self.groups[g].channels.len();
-                    let a = &w.walk[g][i * m..(i + 1) * m];
-                    for j in 0..n {
-                        pairs[i * n + j] = if j == i {
-                            0.0
-                        } else {
-                            let b = &w.walk[g][j * m..(j + 1) * m];
-                            self.harmonic.unresolved(harmonic::leakage(a, b, loading))
-                        };
+            for i in 0..n {
+                for j in i + 1..n {
+                    let (si, sj) = (&self.streams[i], &self.streams[j]);
+                    if !(w.pairs_stale || si.steering_changed || sj.steering_changed) {
+                        continue;
                     }
+                    // The leakage is symmetric in the two steering vectors on one group.
+                    let (gi, gj) = (si.group, sj.group);
+                    let unresolved = |g: usize, a: usize, b: usize| {
+                        let m = self.groups[g].channels.len();
+                        let va = &w.walk[g][a * m..(a + 1) * m];
+                        let vb = &w.walk[g][b * m..(b + 1) * m];
+                        self.harmonic.unresolved(harmonic::leakage(va, vb, loading))
+                    };
+                    let u = unresolved(gi, i, j);
+                    pairs[i * n + j] = u;
+                    pairs[j * n + i] = if gj == gi { u } else { unresolved(gj, j, i) };
                 }
             }
             // unresolved() is monotone, so the least resolved audible competitor's value is
             // the largest of the pairs'.
+            let floor = self.harmonic.unresolved_floor();
             for i in 0..n {
-                let mut u = self.harmonic.unresolved(0.0);
+                let mut u = floor;
                 if w.priors[i] > 0.0 {
                     for j in (0..n).filter(|&j| j != i && w.priors[j] > 0.0) {
                         u = u.max(pairs[i * n + j]);
@@ -384,7 +389,8 @@ impl Separator {
                 w.reliability[k] = r * r;
             }
             w.pitch.push(if w.priors[i] > 0.0 {
-                self.harmonic.pitch(&w.mag, &w.reliability)
+                self.harmonic
+                    .pitch(&w.mag, &w.reliability, &mut w.pitch_table)
             } else {
                 Pitch::default()
             });

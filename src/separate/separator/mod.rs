@@ -91,6 +91,8 @@ struct Work {
     /// Per-bin scratch of the F0 analysis: a stream's magnitude and the bins' reliability.
     mag: Vec<f64>,
     reliability: Vec<f64>,
+    /// Interpolation table of the F0 analysis.
+    pitch_table: Vec<[f64; 4]>,
     /// Per stream: this frame's pitch, how much of it is the stream's own, and (per bin) its
     /// harmonic evidence.
     pitch: Vec<Pitch>,
