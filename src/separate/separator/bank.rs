@@ -59,13 +59,8 @@ impl Separator {
         let bank_changed = self.update_steering();
         self.select_constraints(bank_changed);
         self.size_work();
-        // The pairs' leakage depends only on the steering in use.
         let n = self.streams.len();
-        let w = &mut self.work;
-        if bank_changed || self.streams.iter().any(|s| s.steering_changed) {
-            w.pairs_stale = true;
-        }
-        w.pair_unresolved.resize(self.bins * n * n, 0.0);
+        self.work.pair_unresolved.resize(self.bins * n * n, 0.0);
     }
 
     /// Each stream's microphone group, with its adaptive state sized (and reset on a change).

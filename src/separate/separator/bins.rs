@@ -36,7 +36,6 @@ impl Separator {
             }
         }
         self.write_bins(out);
-        self.work.pairs_stale = false;
         for (s, e) in self.streams.iter_mut().zip(&self.work.energy) {
             s.power = POWER_SMOOTHING * s.power + (1.0 - POWER_SMOOTHING) * e;
             s.steering_changed = false;
@@ -295,23 +294,32 @@ impl Separator {
             // same measure weighs the bins its F0 is read from.
             let loading = self.cfg.null_loading;
             let pairs = &mut w.pair_unresolved[k * n * n..(k + 1) * n * n];
+            // A pair's value is read on the first stream's group and depends only on the
+            // steering there: it is recomputed with that group's fixed beamformers.
+            let unresolved = |g: usize, a: usize, b: usize| {
+                let m = self.groups[g].channels.len();
+                let va = &w.walk[g][a * m..(a + 1) * m];
+                let vb = &w.walk[g][b * m..(b + 1) * m];
+                self.harmonic.unresolved(harmonic::leakage(va, vb, loading))
+            };
             for i in 0..n {
                 for j in i + 1..n {
-                    let (si, sj) = (&self.streams[i], &self.streams[j]);
-                    if !(w.pairs_stale || si.steering_changed || sj.steering_changed) {
+                    let (gi, gj) = (self.streams[i].group, self.streams[j].group);
+                    // The leakage is symmetric in the two steering vectors on one group.
+                    if gi == gj {
+                        if w.rebuild[gi] {
+                            let u = unresolved(gi, i, j);
+                            pairs[i * n + j] = u;
+                            pairs[j * n + i] = u;
+                        }
                         continue;
                     }
-                    // The leakage is symmetric in the two steering vectors on one group.
-                    let (gi, gj) = (si.group, sj.group);
-                    let unresolved = |g: usize, a: usize, b: usize| {
-                        let m = self.groups[g].channels.len();
-                        let va = &w.walk[g][a * m..(a + 1) * m];
-                        let vb = &w.walk[g][b * m..(b + 1) * m];
-                        self.harmonic.unresolved(harmonic::leakage(va, vb, loading))
-                    };
-                    let u = unresolved(gi, i, j);
-                    pairs[i * n + j] = u;
-                    pairs[j * n + i] = if gj == gi { u } else { unresolved(gj, j, i) };
+                    if w.rebuild[gi] {
+                        pairs[i * n + j] = unresolved(gi, i, j);
+                    }
+                    if w.rebuild[gj] {
+                        pairs[j * n + i] = unresolved(gj, j, i);
+                    }
                 }
             }
             // unresolved() is monotone, so the least resolved audible competitor's value is

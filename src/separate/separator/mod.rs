@@ -70,10 +70,9 @@ struct Work {
     w2: Vec<Complex>,
     post: Vec<PostState>,
     /// Per bin, stream and competitor: how unresolved the stream's claim is against that
-    /// competitor (harmonic grouping); recomputed only when some steering moved.
+    /// competitor (harmonic grouping); recomputed only when the steering on the stream's group
+    /// moved (`rebuild`).
     pair_unresolved: Vec<f64>,
-    /// `pair_unresolved` must be recomputed this frame.
-    pairs_stale: bool,
     /// The canceller's forgetting per update this frame.
     rls_forgetting: f64,
     /// Per stream: the bound on the canceller's squared norm this frame.
