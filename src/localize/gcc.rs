@@ -120,8 +120,6 @@ pub(crate) struct GccBank {
     subbands: SubbandLags,
     /// `subbands` predate this frame's cross-spectra.
     subbands_stale: bool,
-    /// A gain of one per sub-band (the unmasked tables).
-    ones: Vec<f64>,
     window_power: f64,
     /// FFT length (samples).
     pub frame: usize,
@@ -207,7 +205,6 @@ impl GccBank {
             }
         }
         let subbands = SubbandLags::new(band, subband_bins, frame, npairs, lag_span);
-        let ones = vec![1.0; subbands.count];
         let nb = band.1 + 1 - band.0;
         let kernel = (0..2 * max_half + 4)
             .map(|j| band_kernel(band, frame, j as f64 / interpolation as f64))
@@ -238,7 +235,6 @@ impl GccBank {
             kernel,
             subbands,
             subbands_stale: true,
-            ones,
             window_power,
             frame,
         }
@@ -323,9 +319,7 @@ impl GccBank {
     /// [-1, 1] and equals 1 for a perfectly coherent pair whatever the exponent.
     pub fn compute(&mut self) {
         self.smooth();
-        let ones = std::mem::take(&mut self.ones);
-        self.tabulate_subbands(&ones);
-        self.ones = ones;
+        self.tabulate_subbands(None);
         self.pristine.copy_from_slice(&self.table);
         self.pristine_null_var = self.null_var;
     }
@@ -372,10 +366,10 @@ impl GccBank {
 
     /// Recomputes every pair's fine table (and the null variance) with sub-band `b` of the band
     /// weighted by `gains[b]` (sub-bands of [`GccBank::subband_width`] bins, the last one may be
-    /// shorter): exactly the tables of the cross-spectra masked that way. The sub-band
+    /// shorter; `None` weighs all by one): exactly the tables of the cross-spectra masked that way. The sub-band
     /// contributions are computed once per frame, so each call costs a weighted sum per lag
     /// (see [`SubbandLags`]).
-    pub fn tabulate_subbands(&mut self, gains: &[f64]) {
+    pub fn tabulate_subbands(&mut self, gains: Option<&[f64]>) {
         let nb = self.band.1 + 1 - self.band.0;
         let npairs = self.pairs.len();
         if self.subbands_stale {

@@ -135,7 +135,7 @@ impl SubbandMask {
                 };
             }
         }
-        bank.tabulate_subbands(&self.mask);
+        bank.tabulate_subbands(Some(&self.mask));
     }
 
     /// Steering vector of `delays` at the first sub-band's centre in `steer`, and its change

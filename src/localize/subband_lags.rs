@@ -158,14 +158,20 @@ impl SubbandLags {
         }
     }
 
-    /// Pair `q`'s GCC at every lag with sub-band `b` weighted by `gains[b]`, into `out`; returns
+    /// Pair `q`'s GCC at every lag with sub-band `b` weighted by `gains[b]` (by one with `None`;
+    /// sub-bands past a short `gains` count for nothing), into `out`; returns
     /// the weighted bin norms (sum g n1, sum g^2 n2).
-    pub fn combine(&self, q: usize, gains: &[f64], out: &mut [f64]) -> (f64, f64) {
+    pub fn combine(&self, q: usize, gains: Option<&[f64]>, out: &mut [f64]) -> (f64, f64) {
         let (nl, stride) = (self.lags, self.stride);
         let out = &mut out[..nl];
         out.fill(0.0);
         let (mut t1, mut t2) = (0.0, 0.0);
-        for (b, &g) in gains.iter().enumerate().take(self.count) {
+        for b in 0..self.count {
+            let g = match gains.map(|g| g.get(b)) {
+                None => 1.0,
+                Some(Some(&g)) => g,
+                Some(None) => break,
+            };
             let i = q * self.count + b;
             t1 += g * self.norm1[i];
             t2 += g * g * self.norm2[i];
@@ -230,7 +236,7 @@ mod tests {
             .collect();
         let mut out = vec![0.0; 2 * span + 1];
         for q in 0..2 {
-            let (t1, t2) = sub.combine(q, &g, &mut out);
+            let (t1, t2) = sub.combine(q, Some(&g), &mut out);
             for (i, got) in out.iter().enumerate() {
                 let want = direct(
                     band,

@@ -117,12 +117,7 @@ impl Harmonic {
         for &(centre, _) in top.iter().filter(|t| t.0 != usize::MAX) {
             let lo = centre.saturating_sub(COARSE - 1);
             let hi = (centre + COARSE).min(n);
-            for &f0 in &self.candidates[lo..hi] {
-                let sc = comb.score(f0);
-                if sc.2 > (best.1).2 {
-                    best = (f0, sc);
-                }
-            }
+            comb.best(&self.candidates[lo..hi], &mut best);
         }
         self.pitch_of(best.0, best.1)
     }
@@ -136,12 +131,7 @@ impl Harmonic {
             return Pitch::default();
         };
         let mut best = (0.0, Score::default());
-        for &f0 in &self.candidates {
-            let sc = comb.score(f0);
-            if sc.2 > (best.1).2 {
-                best = (f0, sc);
-            }
-        }
+        comb.best(&self.candidates, &mut best);
         self.pitch_of(best.0, best.1)
     }
 
@@ -254,6 +244,16 @@ impl<'a> Comb<'a> {
             kmax,
             hz_per_bin,
         })
+    }
+
+    /// Raises `best` to the best of `f0s` by selection score (the first of equals).
+    fn best(&self, f0s: &[f64], best: &mut (f64, Score)) {
+        for &f0 in f0s {
+            let sc = self.score(f0);
+            if sc.2 > (best.1).2 {
+                *best = (f0, sc);
+            }
+        }
     }
 
     /// Peak-minus-valley comb of `f0` over the harmonics up to `kmax`, each weighted by its
