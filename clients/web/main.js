@@ -56,6 +56,9 @@ class LiveView {
     this.parts = [];
     $('live-title').textContent = `session ${id}`;
     $('live-token').value = tokenFor(id);
+    // The previous session's state and panels must not show while this one loads.
+    $('live-state').textContent = 'loading…';
+    $('cameras').replaceChildren();
     this.start();
   }
 
