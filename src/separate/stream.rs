@@ -2,6 +2,7 @@
 
 use super::blocking::BlockingBank;
 use super::config::BeamformerKind;
+use super::harmonic::Register;
 use super::lifecycle::Envelope;
 use super::null_steering::NullSteering;
 use super::postfilter::PostState;
@@ -56,6 +57,8 @@ pub(super) struct Stream {
     pub steering_changed: bool,
     /// Rebuild this stream's capped fixed beamformers this frame.
     pub constraints_changed: bool,
+    /// The label's pitch register (harmonic grouping).
+    pub register: Register,
 }
 
 impl Stream {
@@ -85,6 +88,7 @@ impl Stream {
             null_steering: Vec::new(),
             steering_changed: true,
             constraints_changed: true,
+            register: Register::default(),
         }
     }
 

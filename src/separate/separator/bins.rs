@@ -397,8 +397,12 @@ impl Separator {
                 w.reliability[k] = r * r;
             }
             w.pitch.push(if w.priors[i] > 0.0 {
-                self.harmonic
-                    .pitch(&w.mag, &w.reliability, &mut w.pitch_table)
+                self.harmonic.pitch(
+                    &w.mag,
+                    &w.reliability,
+                    &self.streams[i].register,
+                    &mut w.pitch_table,
+                )
             } else {
                 Pitch::default()
             });
@@ -406,6 +410,9 @@ impl Separator {
         w.ownership.resize(n, 0.0);
         w.evidence.resize(n, 0.0);
         self.harmonic.ownership(&w.pitch, &mut w.ownership);
+        for ((s, p), o) in self.streams.iter_mut().zip(&w.pitch).zip(&w.ownership) {
+            self.harmonic.observe(&mut s.register, p, *o);
+        }
         let floor = self.post.floor();
         for k in self.k_lo..self.k_hi {
             let u = &w.frame_unresolved[k * n..(k + 1) * n];

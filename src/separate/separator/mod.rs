@@ -156,7 +156,7 @@ impl Separator {
                 fade_out: 1,
             },
             post: PostFilter::new(&cfg.post_filter, 1.0),
-            harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0),
+            harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0, 1.0),
             psd: Vec::new(),
             psd_ready: false,
             ref_power: Vec::new(),
@@ -361,7 +361,7 @@ impl Separator {
         let frames_per_s = self.fs / geom.hop as f64;
         self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
         self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
-        self.harmonic = Harmonic::new(&self.cfg.post_filter.harmonic, hz_per_bin);
+        self.harmonic = Harmonic::new(&self.cfg.post_filter.harmonic, hz_per_bin, frames_per_s);
         let maxm = self
             .groups
             .iter()
