@@ -8,6 +8,9 @@
 //! comb, Hermes-style subharmonic summation), and in the unresolved bins the labels' pooled gain
 //! is redistributed towards the labels whose harmonic comb passes through the bin (a product of
 //! the spatial gain and the harmonic evidence, so without any evidence the split stays spatial).
+//! Each label keeps a pitch register, the running mean of the log F0s it owned, and the search
+//! prefers candidates inside it: in a frame where a neighbour's leak is as strong as the label's
+//! own voice, the label keeps its own pitch instead of taking the neighbour's.
 //!
 //! How unresolved a pair of labels is at a bin follows from their steering vectors and the
 //! null-steering loading: the loaded two-column beamformer's leakage of one label into the
