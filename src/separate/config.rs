@@ -231,7 +231,7 @@ pub struct HarmonicConfig {
     pub voicing_high: f64,
     /// Width (semitones, one standard deviation) of a label's pitch register: the F0 search
     /// prefers candidates near the running mean of the label's own past F0s (weighted by
-    /// voicing and ownership), so a label does not pick up a neighbour's pitch in the
+    /// their ownership, which includes voicing), so a label does not pick up a neighbour's pitch in the
     /// frames where that neighbour's leak is as strong as its own voice. 0 turns the register
     /// off. 4 (default) against off: paper-linear6 seeds 1-3 +5.99 / +5.57 dB SI-SDRi, seeds
     /// 4-6 +2.87 / +2.59 dB; uca8 three talkers seeds 1-3 oracle +8.20 / +7.93 dB, full

@@ -38,7 +38,8 @@ pub struct Pitch {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Register {
     log_f0: f64,
-    /// Discounted sum of the evidence (voicing x ownership per frame) behind the mean.
+    /// Discounted sum of the evidence (ownership per frame, which includes voicing) behind
+    /// the mean.
     weight: f64,
 }
 
@@ -99,15 +100,22 @@ impl Harmonic {
         }
     }
 
-    /// The register's preference for `f0`, in (0, 1]: 1 without a register, else a Gaussian in
-    /// log F0 around its mean, mixed with 1 by how established it is.
-    fn preference(&self, register: &Register, f0: f64) -> f64 {
-        if self.register_sigma <= 0.0 || register.weight <= 0.0 {
-            return 1.0;
+    /// The register's preference over F0, in (0, 1]: 1 without a register, else a Gaussian in
+    /// log F0 around its mean, mixed with 1 by how established it is (fixed for one search).
+    fn preference(&self, register: &Register) -> impl Fn(f64) -> f64 {
+        let c = if self.register_sigma > 0.0 && register.weight > 0.0 {
+            REGISTER_MAX_CONFIDENCE * register.weight / (register.weight + self.register_half)
+        } else {
+            0.0
+        };
+        let (mean, sigma) = (register.log_f0, self.register_sigma);
+        move |f0: f64| {
+            if c == 0.0 {
+                return 1.0;
+            }
+            let d = (f0.ln() - mean) / sigma;
+            1.0 - c + c * (-0.5 * d * d).exp()
         }
-        let c = REGISTER_MAX_CONFIDENCE * register.weight / (register.weight + self.register_half);
-        let d = (f0.ln() - register.log_f0) / self.register_sigma;
-        1.0 - c + c * (-0.5 * d * d).exp()
     }
 
     /// Folds this frame's pitch of a label into its register, weighted by `evidence`
@@ -160,7 +168,7 @@ impl Harmonic {
         let Some(comb) = Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) else {
             return Pitch::default();
         };
-        let prefer = |f0: f64| self.preference(register, f0);
+        let prefer = self.preference(register);
         let n = self.candidates.len();
         // Best coarse candidates by selection score, best first.
         let mut top = [(usize::MAX, 0.0f64); REFINED];
@@ -176,7 +184,7 @@ impl Harmonic {
         for &(centre, _) in top.iter().filter(|t| t.0 != usize::MAX) {
             let lo = centre.saturating_sub(COARSE - 1);
             let hi = (centre + COARSE).min(n);
-            comb.best(&self.candidates[lo..hi], prefer, &mut best);
+            comb.best(&self.candidates[lo..hi], &prefer, &mut best);
         }
         self.pitch_of(best.0, best.1)
     }
