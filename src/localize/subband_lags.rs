@@ -14,6 +14,10 @@ use std::f64::consts::PI;
 
 use crate::dsp::Complex;
 
+/// Lags summed together in [`SubbandLags::rebuild`]: one AVX-512 register of f64 (two AVX2
+/// ones), few enough that the sums stay in registers.
+const LAG_BLOCK: usize = 8;
+
 /// Sub-band lag contributions of every pair, with their bin norms.
 pub(crate) struct SubbandLags {
     /// Bins per sub-band (the last one may be shorter).
@@ -22,7 +26,7 @@ pub(crate) struct SubbandLags {
     pub count: usize,
     /// Integer lags, from -span to +span.
     lags: usize,
-    /// `lags` rounded up to whole vectors (the padding lags are computed and ignored).
+    /// `lags` rounded up to whole [`LAG_BLOCK`]s (the padding lags are computed and ignored).
     stride: usize,
     /// Per in-band offset i < width and lag: e^{j 2 pi i n / N}, real and imaginary parts.
     offset_re: Vec<f64>,
@@ -35,8 +39,6 @@ pub(crate) struct SubbandLags {
     /// Per pair and sub-band: the bin norms summed over the sub-band (first and second).
     norm1: Vec<f64>,
     norm2: Vec<f64>,
-    acc_re: Vec<f64>,
-    acc_im: Vec<f64>,
 }
 
 impl SubbandLags {
@@ -53,7 +55,7 @@ impl SubbandLags {
         let width = width.clamp(1, nb.max(1));
         let count = nb.div_ceil(width);
         let lags = 2 * span + 1;
-        let stride = lags.next_multiple_of(4);
+        let stride = lags.next_multiple_of(LAG_BLOCK);
         // Phases reduced modulo N before scaling, so large k n stay exact.
         let phasor = |k: usize, l: usize| {
             let n = l as i64 - span as i64;
@@ -88,15 +90,16 @@ impl SubbandLags {
             values: vec![0.0; pairs * count * stride],
             norm1: vec![0.0; pairs * count],
             norm2: vec![0.0; pairs * count],
-            acc_re: vec![0.0; stride],
-            acc_im: vec![0.0; stride],
         }
     }
 
     /// Recomputes pair `q`'s contributions from its band cross-spectrum and bin norms.
     pub fn rebuild(&mut self, q: usize, cross: &[Complex], norm1: &[f64], norm2: &[f64]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F, checked just above.
+            unsafe { self.rebuild_avx512(q, cross) };
+        } else if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked just above.
             unsafe { self.rebuild_avx2(q, cross) };
         } else {
@@ -110,6 +113,14 @@ impl SubbandLags {
             self.norm1[q * count + b] = norm1[k0..k1].iter().sum();
             self.norm2[q * count + b] = norm2[k0..k1].iter().sum();
         }
+    }
+
+    /// [`SubbandLags::rebuild_lags`] compiled for AVX-512 (eight lanes; the same operations in
+    /// the same order, so the same result).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn rebuild_avx512(&mut self, q: usize, cross: &[Complex]) {
+        self.rebuild_lags(q, cross);
     }
 
     /// [`SubbandLags::rebuild_lags`] compiled for AVX2 (four lanes instead of two, the same
@@ -129,31 +140,31 @@ impl SubbandLags {
             start_re,
             start_im,
             values,
-            acc_re,
-            acc_im,
             ..
         } = self;
-        // Slices of one padded length, so the lag loops compile to vector code without
-        // bounds checks.
-        let (acc_re, acc_im) = (&mut acc_re[..nl], &mut acc_im[..nl]);
         for b in 0..count {
             let k0 = b * w;
-            let k1 = (k0 + w).min(cross.len());
-            acc_re.fill(0.0);
-            acc_im.fill(0.0);
-            for (i, c) in cross[k0..k1].iter().enumerate() {
-                let zr = &offset_re[i * nl..(i + 1) * nl];
-                let zi = &offset_im[i * nl..(i + 1) * nl];
-                for l in 0..nl {
-                    acc_re[l] += c.re * zr[l] - c.im * zi[l];
-                    acc_im[l] += c.re * zi[l] + c.im * zr[l];
-                }
-            }
-            let sr = &start_re[b * nl..(b + 1) * nl];
-            let si = &start_im[b * nl..(b + 1) * nl];
+            let bins = &cross[k0..(k0 + w).min(cross.len())];
             let out = &mut values[(q * count + b) * nl..(q * count + b + 1) * nl];
-            for l in 0..nl {
-                out[l] = 2.0 * (sr[l] * acc_re[l] - si[l] * acc_im[l]);
+            // One block of lags at a time, its sums kept in registers over the sub-band's bins
+            // (each lag's sum still runs over the bins in order).
+            for l0 in (0..nl).step_by(LAG_BLOCK) {
+                let (mut acc_re, mut acc_im) = ([0.0f64; LAG_BLOCK], [0.0f64; LAG_BLOCK]);
+                for (i, c) in bins.iter().enumerate() {
+                    let at = i * nl + l0;
+                    let zr = &offset_re[at..at + LAG_BLOCK];
+                    let zi = &offset_im[at..at + LAG_BLOCK];
+                    for l in 0..LAG_BLOCK {
+                        acc_re[l] += c.re * zr[l] - c.im * zi[l];
+                        acc_im[l] += c.re * zi[l] + c.im * zr[l];
+                    }
+                }
+                let sr = &start_re[b * nl + l0..b * nl + l0 + LAG_BLOCK];
+                let si = &start_im[b * nl + l0..b * nl + l0 + LAG_BLOCK];
+                let o = &mut out[l0..l0 + LAG_BLOCK];
+                for l in 0..LAG_BLOCK {
+                    o[l] = 2.0 * (sr[l] * acc_re[l] - si[l] * acc_im[l]);
+                }
             }
         }
     }
