@@ -1,0 +1,248 @@
+//! Checks of a tracker configuration: every field against its range, the error naming the
+//! first offending one by its dotted path.
+
+use super::TrackerConfig;
+
+/// Invalid tracker configuration or sensor model: names the offending field.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {message}")]
+pub struct ConfigError {
+    /// Dotted path of the offending field, e.g. `camera.p_detect`.
+    pub field: String,
+    /// What is wrong with it.
+    pub message: String,
+}
+
+impl ConfigError {
+    /// An error about `field`.
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+fn check(ok: bool, field: &str, message: &str) -> Result<(), ConfigError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ConfigError::new(field, message))
+    }
+}
+
+fn positive(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(v.is_finite() && v > 0.0, field, "must be a positive number")
+}
+
+fn probability_open(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && v > 0.0 && v < 1.0,
+        field,
+        "must be a probability strictly between 0 and 1",
+    )
+}
+
+fn probability(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && (0.0..=1.0).contains(&v),
+        field,
+        "must be a probability in [0, 1]",
+    )
+}
+
+/// Detection probabilities must stay below 1 so that a miss keeps a finite log weight.
+fn detect_probability(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && (0.0..1.0).contains(&v),
+        field,
+        "must be in [0, 1) (a miss must remain possible)",
+    )
+}
+
+fn non_negative(v: f64, field: &str) -> Result<(), ConfigError> {
+    check(
+        v.is_finite() && v >= 0.0,
+        field,
+        "must be a non-negative number",
+    )
+}
+
+impl TrackerConfig {
+    /// Checks every field; the error names the first offending one.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let m = &self.motion;
+        positive(m.beta_per_s, "motion.beta_per_s")?;
+        positive(m.nu_m_per_s, "motion.nu_m_per_s")?;
+        for (i, s) in m.sigma_m_per_s.iter().enumerate() {
+            non_negative(*s, &format!("motion.sigma_m_per_s[{i}]"))?;
+        }
+        for (i, s) in m.accel_std_m_per_s2.iter().enumerate() {
+            non_negative(*s, &format!("motion.accel_std_m_per_s2[{i}]"))?;
+        }
+        probability_open(self.survival_probability, "survival_probability")?;
+        let a = &self.audio_position;
+        positive(a.noise_std_m, "audio_position.noise_std_m")?;
+        detect_probability(a.p_detect, "audio_position.p_detect")?;
+        detect_probability(a.min_p_detect, "audio_position.min_p_detect")?;
+        positive(a.clutter_rate, "audio_position.clutter_rate")?;
+        positive(a.clutter_volume_m3, "audio_position.clutter_volume_m3")?;
+        let d = &self.audio_direction;
+        positive(d.noise_std_deg, "audio_direction.noise_std_deg")?;
+        detect_probability(d.p_detect, "audio_direction.p_detect")?;
+        detect_probability(d.min_p_detect, "audio_direction.min_p_detect")?;
+        positive(d.clutter_rate, "audio_direction.clutter_rate")?;
+        let c = &self.camera;
+        positive(c.noise_std_px, "camera.noise_std_px")?;
+        positive(c.reference_height_px, "camera.reference_height_px")?;
+        detect_probability(c.p_detect, "camera.p_detect")?;
+        positive(c.clutter_rate, "camera.clutter_rate")?;
+        probability(c.occluded_factor, "camera.occluded_factor")?;
+        positive(c.face_size_m[0], "camera.face_size_m[0]")?;
+        positive(c.face_size_m[1], "camera.face_size_m[1]")?;
+        positive(c.face_size_log_std, "camera.face_size_log_std")?;
+        for (i, s) in c.occluder_half_size_m.iter().enumerate() {
+            positive(*s, &format!("camera.occluder_half_size_m[{i}]"))?;
+        }
+        positive(self.ukf.alpha, "ukf.alpha")?;
+        non_negative(self.ukf.beta, "ukf.beta")?;
+        non_negative(self.ukf.kappa, "ukf.kappa")?;
+        check(
+            self.gate_probability.is_finite()
+                && self.gate_probability > 0.5
+                && self.gate_probability <= 1.0,
+            "gate_probability",
+            "must be in (0.5, 1]",
+        )?;
+        let g = &self.glmb;
+        check(
+            (1..=1_000_000).contains(&g.requested_hypotheses),
+            "glmb.requested_hypotheses",
+            "must be between 1 and 1000000",
+        )?;
+        check(
+            (1..=1_000_000).contains(&g.max_hypotheses),
+            "glmb.max_hypotheses",
+            "must be between 1 and 1000000",
+        )?;
+        probability_open(g.prune_threshold, "glmb.prune_threshold")?;
+        self.validate_birth()?;
+        let v = &self.voice;
+        positive(v.mean_talk_s, "voice.mean_talk_s")?;
+        positive(v.mean_pause_s, "voice.mean_pause_s")?;
+        probability(v.initial_talking, "voice.initial_talking")?;
+        let f = &self.face;
+        positive(f.mean_towards_s, "face.mean_towards_s")?;
+        positive(f.mean_away_s, "face.mean_away_s")?;
+        detect_probability(f.away_p_detect, "face.away_p_detect")?;
+        check(
+            f.away_p_detect <= self.camera.p_detect,
+            "face.away_p_detect",
+            "must not exceed camera.p_detect",
+        )?;
+        probability(f.initial_towards, "face.initial_towards")?;
+        let e = &self.estimator;
+        probability(e.hysteresis_existence, "estimator.hysteresis_existence")?;
+        check(
+            self.speaking_smoothing.is_finite()
+                && self.speaking_smoothing > 0.0
+                && self.speaking_smoothing <= 1.0,
+            "speaking_smoothing",
+            "must be in (0, 1]",
+        )?;
+        let p = &self.gmphd;
+        probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
+        positive(p.merge_threshold, "gmphd.merge_threshold")?;
+        check(
+            (1..=100_000).contains(&p.max_components),
+            "gmphd.max_components",
+            "must be between 1 and 100000",
+        )?;
+        positive(p.extraction_threshold, "gmphd.extraction_threshold")?;
+        positive(p.label_gate_m, "gmphd.label_gate_m")?;
+        Ok(())
+    }
+
+    fn validate_birth(&self) -> Result<(), ConfigError> {
+        let b = &self.birth;
+        for (i, f) in b.fixed.iter().enumerate() {
+            for (j, v) in f.position.iter().enumerate() {
+                check(
+                    v.is_finite(),
+                    &format!("birth.fixed[{i}].position[{j}]"),
+                    "must be finite",
+                )?;
+            }
+            probability_open(f.existence, &format!("birth.fixed[{i}].existence"))?;
+            positive(
+                f.position_std_m,
+                &format!("birth.fixed[{i}].position_std_m"),
+            )?;
+            positive(
+                f.velocity_std_m_per_s,
+                &format!("birth.fixed[{i}].velocity_std_m_per_s"),
+            )?;
+        }
+        positive(b.expected_births, "birth.expected_births")?;
+        probability_open(b.max_existence, "birth.max_existence")?;
+        probability(b.max_association, "birth.max_association")?;
+        check(
+            b.max_per_step <= 64,
+            "birth.max_per_step",
+            "must be at most 64",
+        )?;
+        positive(b.position_std_m, "birth.position_std_m")?;
+        positive(b.velocity_std_m_per_s, "birth.velocity_std_m_per_s")?;
+        let [d0, d1] = b.camera_depth_range_m;
+        check(
+            d0.is_finite() && d1.is_finite() && d0 > 0.0 && d1 > d0,
+            "birth.camera_depth_range_m",
+            "must be [near, far] with 0 < near < far",
+        )?;
+        positive(b.direction_range_m, "birth.direction_range_m")?;
+        check(
+            b.default_height_m.is_finite(),
+            "birth.default_height_m",
+            "must be finite",
+        )?;
+        probability_open(
+            b.suppress_gate_probability,
+            "birth.suppress_gate_probability",
+        )?;
+        probability(b.suppress_existence, "birth.suppress_existence")?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::track::config::{TrackerConfig, TrackerKind};
+
+    #[test]
+    fn defaults_are_valid_and_round_trip() {
+        let c = TrackerConfig::default();
+        c.validate().unwrap();
+        let s = serde_json::to_string(&c).unwrap();
+        let back: TrackerConfig = serde_json::from_str(&s).unwrap();
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn unknown_fields_and_bad_values_name_the_field() {
+        let e = serde_json::from_str::<TrackerConfig>(r#"{"camera": {"p_detekt": 0.5}}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p_detekt"), "{e}");
+        let mut c = TrackerConfig::default();
+        c.camera.p_detect = 1.0;
+        assert_eq!(c.validate().unwrap_err().field, "camera.p_detect");
+        let mut c = TrackerConfig::default();
+        c.birth.camera_depth_range_m = [2.0, 1.0];
+        assert_eq!(
+            c.validate().unwrap_err().field,
+            "birth.camera_depth_range_m"
+        );
+        let c: TrackerConfig = serde_json::from_str(r#"{"tracker": "gmphd"}"#).unwrap();
+        assert_eq!(c.tracker, TrackerKind::Gmphd);
+    }
+}
