@@ -384,6 +384,7 @@ fn hand_made_spec(
         layout: sc.layout.clone(),
         settings: settings(8),
         limits: server.registry.config().limits.clone(),
+        execution: server.registry.config().execution.clone(),
     }
 }
 

@@ -71,6 +71,23 @@ impl AudioHistory {
         }
     }
 
+    /// Appends samples `[from, to)` of every channel to `out`, interleaved (the history holds
+    /// what came in as f32, or silence, so the conversion is exact).
+    pub fn read_interleaved(&self, from: u64, to: u64, out: &mut Vec<f32>) -> Result<(), String> {
+        if to > self.end || from < self.start {
+            return Err(format!(
+                "samples {from}..{to} requested but {}..{} held",
+                self.start, self.end
+            ));
+        }
+        let (a, b) = ((from - self.start) as usize, (to - self.start) as usize);
+        out.reserve((b.saturating_sub(a)) * self.channels.len());
+        for i in a..b {
+            out.extend(self.channels.iter().map(|ch| ch[i] as f32));
+        }
+        Ok(())
+    }
+
     /// Copies samples `[from, from + out.len())` of channel `ch` into `out`. Indices before 0 read as
     /// zeros; indices not (or no longer) held are an error (the caller's scheduling is wrong).
     pub fn read(&self, ch: usize, from: i64, out: &mut [f64]) -> Result<(), String> {
@@ -128,6 +145,20 @@ mod tests {
         let mut tail = [1.0; 3];
         h.read(0, 10, &mut tail).unwrap();
         assert_eq!(tail, [0.0; 3]);
+    }
+
+    #[test]
+    fn reads_interleaved_ranges() {
+        let mut h = AudioHistory::new(2, 3);
+        h.append_interleaved(&[1.0, -1.0, 2.0, -2.0, 3.0, -3.0, 4.0, -4.0]);
+        let mut out = vec![9.0];
+        h.read_interleaved(2, 4, &mut out).unwrap();
+        assert_eq!(out, [9.0, 3.0, -3.0, 4.0, -4.0]);
+        assert!(h.read_interleaved(0, 2, &mut out).is_err(), "discarded");
+        assert!(
+            h.read_interleaved(3, 5, &mut out).is_err(),
+            "beyond the end"
+        );
     }
 
     #[test]

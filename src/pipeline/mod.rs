@@ -20,4 +20,5 @@ pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, Pip
 pub use events::{EventSink, PipelineEvent};
 pub use input::InputError;
 pub use sensor_queue::SensorQueue;
+pub use separation::{SeparationChunk, SeparationDriver, SeparationHandoff, SeparationWork};
 pub use session::{LIVE_SETTINGS, Pipeline, PipelineStats};

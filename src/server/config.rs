@@ -25,6 +25,8 @@ pub struct ServerConfig {
     pub drain_timeout_s: f64,
     /// Limits that bound memory and work.
     pub limits: Limits,
+    /// How a session's work is spread over threads.
+    pub execution: Execution,
     /// How the server joins Zenoh (sessions stream over Zenoh as well as WebSocket).
     pub zenoh: ZenohConfig,
 }
@@ -37,6 +39,7 @@ impl Default for ServerConfig {
             cors_origins: Vec::new(),
             drain_timeout_s: 10.0,
             limits: Limits::default(),
+            execution: Execution::default(),
             zenoh: ZenohConfig::default(),
         }
     }
@@ -82,6 +85,32 @@ impl Default for Limits {
             history_steps: 2048,
             finished_ttl_s: 600.0,
             control_timeout_s: 5.0,
+        }
+    }
+}
+
+/// How a session's work is spread over threads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct Execution {
+    /// Run each session's separation on a thread of its own, behind its tracker: a session's step
+    /// then sends its tracks without waiting for its own or any other session's separation.
+    /// Results are the same either way.
+    pub separation_thread: bool,
+    /// Niceness of the separation threads (0 to 19; higher yields more readily), so that on a
+    /// busy machine the tracker steps, whose latency clients see, go first.
+    pub separation_nice: i32,
+    /// Steps of separation work a session queues; when the separation is that far behind, the
+    /// session's pipeline waits for it (and its input queue, then `queue_full`, takes the strain).
+    pub separation_queue: usize,
+}
+
+impl Default for Execution {
+    fn default() -> Self {
+        Self {
+            separation_thread: true,
+            separation_nice: 19,
+            separation_queue: 16,
         }
     }
 }
@@ -160,6 +189,18 @@ impl ServerConfig {
                 "must be in (0, 600] s",
             ));
         }
+        if !(0..=19).contains(&self.execution.separation_nice) {
+            return Err(ConfigError::new(
+                "execution.separation_nice",
+                "must be in 0..=19",
+            ));
+        }
+        if self.execution.separation_queue == 0 {
+            return Err(ConfigError::new(
+                "execution.separation_queue",
+                "must be at least 1",
+            ));
+        }
         self.zenoh.validate()
     }
 }
@@ -195,5 +236,7 @@ mod tests {
         assert_eq!(e.field, "admin_key");
         let e = ServerConfig::parse(r#"{"limits": {"max_message_bytes": 100}}"#).unwrap_err();
         assert_eq!(e.field, "limits.max_message_bytes");
+        let e = ServerConfig::parse("[execution]\nseparation_nice = 20\n").unwrap_err();
+        assert_eq!(e.field, "execution.separation_nice");
     }
 }

@@ -2,7 +2,10 @@
 //! can be shown with an engine that breaks on purpose.
 
 use crate::geometry::Layout;
-use crate::pipeline::{ConfigError, EventSink, InputError, Pipeline, PipelineConfig};
+use crate::pipeline::{
+    ConfigError, EventSink, InputError, Pipeline, PipelineConfig, SeparationDriver,
+    SeparationHandoff,
+};
 use crate::scene::{AudioMeasurementFrame, DetectionFrame};
 
 /// One session's processing, as the worker thread sees it. Every input hands what it produces
@@ -34,6 +37,11 @@ pub trait Engine: Send + 'static {
     fn update_config(&mut self, cfg: PipelineConfig) -> Result<(), ConfigError>;
     /// End of input: everything held is processed and flushed.
     fn finish(&mut self, sink: &mut EventSink<'_>);
+    /// Hands the separation work to `handoff` from now on and returns what applies it
+    /// ([`Pipeline::detach_separation`]); an engine that separates nothing returns None.
+    fn detach_separation(&mut self, _handoff: SeparationHandoff) -> Option<SeparationDriver> {
+        None
+    }
 }
 
 impl Engine for Pipeline {
@@ -73,5 +81,9 @@ impl Engine for Pipeline {
 
     fn finish(&mut self, sink: &mut EventSink<'_>) {
         self.finish_to(sink)
+    }
+
+    fn detach_separation(&mut self, handoff: SeparationHandoff) -> Option<SeparationDriver> {
+        Pipeline::detach_separation(self, handoff)
     }
 }

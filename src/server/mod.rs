@@ -26,7 +26,7 @@ mod worker;
 pub mod zenoh_transport;
 
 pub use app::{Server, router};
-pub use config::{Limits, ServerConfig};
+pub use config::{Execution, Limits, ServerConfig};
 pub use registry::Registry;
 pub use session::{ClientId, Input, Output, Rejection, SessionHandle};
 

@@ -141,6 +141,7 @@ impl Registry {
             layout,
             settings,
             limits: self.config.limits.clone(),
+            execution: self.config.execution.clone(),
         };
         let handle = self.insert(spec, pipeline)?;
         tracing::info!(session = %handle.id(), "session created");

@@ -21,7 +21,7 @@ use crate::track::{SensorKey, Tracker, build_tracker, sensors_from_layout};
 use super::config::{ConfigError, PipelineConfig};
 use super::input::{self, InputError};
 use super::sensor_queue::SensorQueue;
-use super::separation::SeparationDriver;
+use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
 use super::stages::{SensorRoutes, Timeline};
 use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
@@ -77,7 +77,7 @@ pub struct Pipeline {
     timeline: Timeline,
     live: BTreeSet<Label>,
     seen: BTreeSet<Label>,
-    separation: Option<SeparationDriver>,
+    separation: Option<SeparationFeed>,
     stats: PipelineStats,
     finishing: bool,
     /// Where the (zero-padded) input ends once finishing; steps past it are not run.
@@ -102,7 +102,7 @@ impl Pipeline {
             .as_ref()
             .map_or(cfg.localize.frame, Localizer::frame_size);
         let separation = if has_audio && cfg.separation {
-            Some(SeparationDriver::new(&layout, &cfg.separate)?)
+            Some(SeparationFeed::new(&layout, &cfg.separate)?)
         } else {
             None
         };
@@ -193,6 +193,14 @@ impl Pipeline {
     /// separated sample it releases (frame minus hop of the separator's STFT).
     pub fn audio_delay_samples(&self) -> u64 {
         self.separation.as_ref().map_or(0, |s| s.delay_samples())
+    }
+
+    /// Moves the separation out of the pipeline: from now on each step's separation work goes to
+    /// `handoff`, in order, and whoever holds the returned driver applies it (a live session runs
+    /// it on a thread of its own, so the next step's tracks never wait for this step's audio).
+    /// None when the pipeline separates nothing or has handed its driver out already.
+    pub fn detach_separation(&mut self, handoff: SeparationHandoff) -> Option<SeparationDriver> {
+        self.separation.as_mut()?.detach(handoff)
     }
 
     fn reject<T>(&mut self, e: InputError) -> Result<T, InputError> {
@@ -364,7 +372,7 @@ impl Pipeline {
                 .map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?;
         }
         if let Some(s) = self.separation.as_mut() {
-            s.set_layout(&layout)?;
+            s.set_layout(&layout);
         }
         if let TrackSource::Tracker { tracker, .. } = &mut self.source {
             let models = sensors_from_layout(&layout, &self.cfg.track)

@@ -89,12 +89,15 @@ impl Pipeline {
         if let Some(sep) = self.separation.as_mut()
             && let Some(audio) = &self.audio
         {
-            let until = audio.end();
             let timeline = &self.timeline;
-            sep.run_until(audio, until, &self.clock, |t| timeline.targets_at(t))
-                .into_iter()
-                .chain(sep.flush())
-                .for_each(&mut *sink);
+            sep.advance(
+                audio,
+                audio.end(),
+                &self.clock,
+                |t| timeline.targets_at(t),
+                sink,
+            );
+            sep.flush(sink);
         }
         for label in std::mem::take(&mut self.live) {
             let t = self.timeline.last_time().unwrap_or(0.0);
@@ -154,19 +157,24 @@ impl Pipeline {
         self.timeline.push(t_est, estimates.clone(), activity);
         self.emit_tracks(k, t_est, &estimates, sink);
 
-        // Separation of every STFT frame whose window ends within this step.
+        // Separation of every STFT frame whose window ends within this step (here, or handed
+        // to the separation's own thread).
         if let (Some(sep), Some(audio)) = (self.separation.as_mut(), self.audio.as_ref()) {
             let timeline = &self.timeline;
             let oracle = match &self.source {
                 TrackSource::Oracle(truth) => Some(truth),
                 TrackSource::Tracker { .. } => None,
             };
-            sep.run_until(audio, end_sample, &self.clock, |t| match oracle {
-                Some(truth) => stages::oracle_targets(truth, t, activity),
-                None => timeline.targets_at(t),
-            })
-            .into_iter()
-            .for_each(&mut *sink);
+            sep.advance(
+                audio,
+                end_sample,
+                &self.clock,
+                |t| match oracle {
+                    Some(truth) => stages::oracle_targets(truth, t, activity),
+                    None => timeline.targets_at(t),
+                },
+                sink,
+            );
         }
     }
 

@@ -23,7 +23,7 @@ use crate::scene::DetectionFrame;
 use crate::scene::convert::{array_to_file, camera_to_file, region_to_file};
 
 use super::auth;
-use super::config::Limits;
+use super::config::{Execution, Limits};
 use super::engine::Engine;
 use super::metrics::{ServerMetrics, SessionCounters};
 use super::worker;
@@ -86,6 +86,8 @@ pub struct SessionSpec {
     pub audio_delay_samples: u64,
     /// Bounds on queues and clients.
     pub limits: Limits,
+    /// Threads of the session's work.
+    pub execution: Execution,
 }
 
 /// One live session's shared state (see the module documentation).
@@ -205,9 +207,10 @@ impl SessionHandle {
         });
         let handle = Self(session);
         let for_worker = handle.clone();
+        let execution = spec.execution;
         std::thread::Builder::new()
             .name(format!("session-{}", handle.id))
-            .spawn(move || worker::run(engine, for_worker, rx))?;
+            .spawn(move || worker::run(engine, for_worker, rx, &execution))?;
         Ok(handle)
     }
 
