@@ -7,6 +7,7 @@
 pub mod cli;
 pub mod dsp;
 pub mod eval;
+pub mod field_error;
 pub mod geometry;
 pub mod label;
 pub mod localize;

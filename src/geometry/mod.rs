@@ -22,35 +22,7 @@ pub type Vec3 = nalgebra::Vector3<f64>;
 /// A pixel position (u to the right, v down, origin at the top-left pixel corner).
 pub type Pixel = nalgebra::Vector2<f64>;
 
-/// Invalid geometry: names the offending field.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field}: {message}")]
-pub struct GeometryError {
-    /// Dotted path of the offending field, e.g. `cameras[0].projection`.
-    pub field: String,
-    /// What is wrong with it.
-    pub message: String,
-}
-
-impl GeometryError {
-    /// An error about `field`.
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-
-    /// The same error with `prefix.` prepended to the field path.
-    pub fn within(mut self, prefix: &str) -> Self {
-        self.field = if self.field.is_empty() {
-            prefix.to_string()
-        } else {
-            format!("{prefix}.{}", self.field)
-        };
-        self
-    }
-}
+pub use crate::field_error::FieldError as GeometryError;
 
 pub(crate) fn check_finite(field: &str, values: &[f64]) -> Result<(), GeometryError> {
     if values.iter().all(|v| v.is_finite()) {

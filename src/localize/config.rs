@@ -5,25 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::geometry::Layout;
 
-/// Invalid localiser configuration: names the offending field.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("localize.{field}: {message}")]
-pub struct ConfigError {
-    /// Dotted path of the offending field inside the localiser configuration, e.g. `positions.kept_points`.
-    pub field: String,
-    /// What is wrong with it.
-    pub message: String,
-}
-
-impl ConfigError {
-    /// An error about `field`.
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-}
+pub use crate::field_error::FieldError as ConfigError;
 
 /// Which searches the localiser runs on every frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
@@ -286,14 +268,6 @@ impl Default for ActivityConfig {
     }
 }
 
-fn check(ok: bool, field: &str, message: &str) -> Result<(), ConfigError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, message))
-    }
-}
-
 fn finite_in(v: f64, lo: f64, hi: f64) -> bool {
     v.is_finite() && v >= lo && v <= hi
 }
@@ -311,49 +285,49 @@ impl LocalizerConfig {
     /// Checks the configuration against itself and the layout's sample rate.
     pub fn validate(&self, layout: &Layout) -> Result<(), ConfigError> {
         let nyquist = f64::from(layout.sample_rate) / 2.0;
-        check(
+        ConfigError::check(
             (64..=65536).contains(&self.frame) && self.frame.is_multiple_of(2),
             "frame",
             "must be an even number of samples in 64..=65536",
         )?;
-        check(
+        ConfigError::check(
             finite_in(self.band_low_hz, 0.0, nyquist),
             "band_low_hz",
             "must be between 0 and half the sample rate",
         )?;
-        check(
+        ConfigError::check(
             finite_in(self.band_high_hz, self.band_low_hz, 1e6)
                 && self.band_high_hz > self.band_low_hz,
             "band_high_hz",
             "must be above band_low_hz",
         )?;
         let (lo, hi) = self.band_bins(layout.sample_rate);
-        check(
+        ConfigError::check(
             hi >= lo + 7,
             "band_low_hz",
             "the band (up to half the sample rate) must span at least 8 frequency bins",
         )?;
-        check(
+        ConfigError::check(
             finite_in(self.phat_exponent, 0.0, 1.0),
             "phat_exponent",
             "must be in [0, 1]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(self.noise_weight, 0.0, 1e6),
             "noise_weight",
             "must be in [0, 1e6]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(self.smoothing_decay, 0.0, 0.99),
             "smoothing_decay",
             "must be in [0, 0.99]",
         )?;
-        check(
+        ConfigError::check(
             (1..=64).contains(&self.interpolation),
             "interpolation",
             "must be in 1..=64",
         )?;
-        check(
+        ConfigError::check(
             (1..=16).contains(&self.max_candidates),
             "max_candidates",
             "must be in 1..=16",
@@ -366,14 +340,14 @@ impl LocalizerConfig {
 
     fn validate_directions(&self) -> Result<(), ConfigError> {
         let d = &self.directions;
-        check(
+        ConfigError::check(
             !d.levels.is_empty()
                 && d.levels.iter().all(|&l| l <= 6)
                 && d.levels.windows(2).all(|w| w[0] < w[1]),
             "directions.levels",
             "must be a non-empty, strictly increasing list of levels in 0..=6",
         )?;
-        check(
+        ConfigError::check(
             finite_in(d.refine_step_deg, 1e-3, 10.0),
             "directions.refine_step_deg",
             "must be between 0.001 and 10 degrees",
@@ -382,42 +356,42 @@ impl LocalizerConfig {
 
     fn validate_positions(&self) -> Result<(), ConfigError> {
         let p = &self.positions;
-        check(
+        ConfigError::check(
             (2..=1_000_000).contains(&p.kept_points),
             "positions.kept_points",
             "must be in 2..=1000000",
         )?;
-        check(
+        ConfigError::check(
             p.initial_points >= p.kept_points && p.initial_points <= 1_000_000,
             "positions.initial_points",
             "must be at least kept_points and at most 1000000",
         )?;
-        check(
+        ConfigError::check(
             p.max_evaluations >= p.initial_points && p.max_evaluations <= 100_000_000,
             "positions.max_evaluations",
             "must be at least initial_points and at most 1e8",
         )?;
-        check(
+        ConfigError::check(
             p.min_volume_m3.is_finite() && p.min_volume_m3 > 0.0,
             "positions.min_volume_m3",
             "must be a positive number",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.default_half_size_m, 0.01, 1000.0),
             "positions.default_half_size_m",
             "must be between 0.01 and 1000 m",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.min_range_m, 0.0, 100.0),
             "positions.min_range_m",
             "must be between 0 and 100 m",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.exclusion_radius_m, 0.0, 100.0),
             "positions.exclusion_radius_m",
             "must be between 0 and 100 m",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.centre_pull, 0.0, 1000.0),
             "positions.centre_pull",
             "must be between 0 and 1000",
@@ -426,47 +400,47 @@ impl LocalizerConfig {
 
     fn validate_peaks(&self) -> Result<(), ConfigError> {
         let p = &self.peaks;
-        check(
+        ConfigError::check(
             finite_in(p.min_power, -1.0, 1.0),
             "peaks.min_power",
             "must be in [-1, 1]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.relative_power, 0.0, 1.0),
             "peaks.relative_power",
             "must be in [0, 1]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.prominence_sigmas, 0.0, 100.0),
             "peaks.prominence_sigmas",
             "must be in [0, 100]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.exclusion_angle_deg, 0.0, 179.0),
             "peaks.exclusion_angle_deg",
             "must be in [0, 179] degrees",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.exclusion_lobe, 0.0, 1.0),
             "peaks.exclusion_lobe",
             "must be in [0, 1]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(p.mask_exponent, 0.0, 64.0),
             "peaks.mask_exponent",
             "must be in [0, 64]",
         )?;
-        check(
+        ConfigError::check(
             (1..=256).contains(&p.subband_bins),
             "peaks.subband_bins",
             "must be in 1..=256",
         )?;
-        check(
+        ConfigError::check(
             p.power_iterations <= 100,
             "peaks.power_iterations",
             "must be in 0..=100",
         )?;
-        check(
+        ConfigError::check(
             p.joint_passes <= 10,
             "peaks.joint_passes",
             "must be in 0..=10",
@@ -475,37 +449,37 @@ impl LocalizerConfig {
 
     fn validate_activity(&self) -> Result<(), ConfigError> {
         let a = &self.activity;
-        check(
+        ConfigError::check(
             (1..=100_000).contains(&a.noise_window_frames),
             "activity.noise_window_frames",
             "must be in 1..=100000",
         )?;
-        check(
+        ConfigError::check(
             finite_in(a.snr_midpoint_db, -100.0, 100.0),
             "activity.snr_midpoint_db",
             "must be in [-100, 100] dB",
         )?;
-        check(
+        ConfigError::check(
             finite_in(a.snr_scale_db, 0.01, 100.0),
             "activity.snr_scale_db",
             "must be in [0.01, 100] dB",
         )?;
-        check(
+        ConfigError::check(
             finite_in(a.coherence_midpoint, -1.0, 1.0),
             "activity.coherence_midpoint",
             "must be in [-1, 1]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(a.coherence_scale, 1e-4, 10.0),
             "activity.coherence_scale",
             "must be in [0.0001, 10]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(a.min_power, 0.0, 1.0),
             "activity.min_power",
             "must be in [0, 1]",
         )?;
-        check(
+        ConfigError::check(
             finite_in(a.min_activity, 0.0, 1.0),
             "activity.min_activity",
             "must be in [0, 1]",

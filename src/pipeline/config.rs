@@ -97,25 +97,7 @@ impl Default for PipelineConfig {
     }
 }
 
-/// A configuration value that is out of range.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field}: {message}")]
-pub struct ConfigError {
-    /// Dotted path of the field, e.g. `track.p_survival`.
-    pub field: String,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl ConfigError {
-    /// An error about `field`.
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-}
+pub use crate::field_error::FieldError as ConfigError;
 
 impl PipelineConfig {
     /// Checks the pipeline's own fields (the stages check theirs when built).

@@ -61,7 +61,7 @@ pub(super) struct SeparationFeed {
 }
 
 fn sep_err(e: crate::separate::ConfigError) -> ConfigError {
-    ConfigError::new(format!("separate.{}", e.field), e.message)
+    e.within("separate")
 }
 
 impl SeparationFeed {

@@ -6,25 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::dsp::FrameGeometry;
 
-/// An invalid separator configuration or layout: names the offending field.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field}: {message}")]
-pub struct ConfigError {
-    /// Dotted path of the offending field, e.g. `rls.forgetting`.
-    pub field: String,
-    /// What is wrong with it.
-    pub message: String,
-}
-
-impl ConfigError {
-    /// An error about `field`.
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-}
+pub use crate::field_error::FieldError as ConfigError;
 
 /// Which spatial filter each label gets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]

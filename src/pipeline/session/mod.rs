@@ -91,10 +91,7 @@ impl Pipeline {
         let clock = StepClock::new(layout.sample_rate, cfg.step_s);
         let has_audio = layout.channel_count() > 0;
         let localizer = if has_audio && cfg.audio_measurements.uses_localizer() {
-            Some(
-                Localizer::new(&layout, &cfg.localize, seed)
-                    .map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?,
-            )
+            Some(Localizer::new(&layout, &cfg.localize, seed).map_err(|e| e.within("localize"))?)
         } else {
             None
         };
@@ -120,7 +117,7 @@ impl Pipeline {
             layout.region,
             seed,
         )
-        .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+        .map_err(|e| e.within("track"))?;
         Ok(Self {
             clock,
             seed,
@@ -368,8 +365,7 @@ impl Pipeline {
             ));
         }
         if let Some(l) = self.localizer.as_mut() {
-            l.set_layout(&layout)
-                .map_err(|e| ConfigError::new(format!("localize.{}", e.field), e.message))?;
+            l.set_layout(&layout).map_err(|e| e.within("localize"))?;
         }
         if let Some(s) = self.separation.as_mut() {
             s.set_layout(&layout);
@@ -379,9 +375,7 @@ impl Pipeline {
                 .into_iter()
                 .map(|(_, m)| m)
                 .collect();
-            tracker
-                .set_sensors(models)
-                .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+            tracker.set_sensors(models).map_err(|e| e.within("track"))?;
         }
         self.layout = layout;
         Ok(())
@@ -411,17 +405,13 @@ impl Pipeline {
             ));
         }
         if changed.iter().any(|f| f.starts_with("track.")) {
-            cfg.track
-                .validate()
-                .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+            cfg.track.validate().map_err(|e| e.within("track"))?;
             if let TrackSource::Tracker { tracker, .. } = &mut self.source {
                 let models = sensors_from_layout(&self.layout, &cfg.track)
                     .into_iter()
                     .map(|(_, m)| m)
                     .collect();
-                tracker
-                    .set_sensors(models)
-                    .map_err(|e| ConfigError::new(format!("track.{}", e.field), e.message))?;
+                tracker.set_sensors(models).map_err(|e| e.within("track"))?;
             }
         }
         if changed.iter().any(|f| f.starts_with("separate."))

@@ -3,40 +3,14 @@
 
 use super::TrackerConfig;
 
-/// Invalid tracker configuration or sensor model: names the offending field.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{field}: {message}")]
-pub struct ConfigError {
-    /// Dotted path of the offending field, e.g. `camera.p_detect`.
-    pub field: String,
-    /// What is wrong with it.
-    pub message: String,
-}
-
-impl ConfigError {
-    /// An error about `field`.
-    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-}
-
-fn check(ok: bool, field: &str, message: &str) -> Result<(), ConfigError> {
-    if ok {
-        Ok(())
-    } else {
-        Err(ConfigError::new(field, message))
-    }
-}
+pub use crate::field_error::FieldError as ConfigError;
 
 fn positive(v: f64, field: &str) -> Result<(), ConfigError> {
-    check(v.is_finite() && v > 0.0, field, "must be a positive number")
+    ConfigError::check(v.is_finite() && v > 0.0, field, "must be a positive number")
 }
 
 fn probability_open(v: f64, field: &str) -> Result<(), ConfigError> {
-    check(
+    ConfigError::check(
         v.is_finite() && v > 0.0 && v < 1.0,
         field,
         "must be a probability strictly between 0 and 1",
@@ -44,7 +18,7 @@ fn probability_open(v: f64, field: &str) -> Result<(), ConfigError> {
 }
 
 fn probability(v: f64, field: &str) -> Result<(), ConfigError> {
-    check(
+    ConfigError::check(
         v.is_finite() && (0.0..=1.0).contains(&v),
         field,
         "must be a probability in [0, 1]",
@@ -53,7 +27,7 @@ fn probability(v: f64, field: &str) -> Result<(), ConfigError> {
 
 /// Detection probabilities must stay below 1 so that a miss keeps a finite log weight.
 fn detect_probability(v: f64, field: &str) -> Result<(), ConfigError> {
-    check(
+    ConfigError::check(
         v.is_finite() && (0.0..1.0).contains(&v),
         field,
         "must be in [0, 1) (a miss must remain possible)",
@@ -61,7 +35,7 @@ fn detect_probability(v: f64, field: &str) -> Result<(), ConfigError> {
 }
 
 fn non_negative(v: f64, field: &str) -> Result<(), ConfigError> {
-    check(
+    ConfigError::check(
         v.is_finite() && v >= 0.0,
         field,
         "must be a non-negative number",
@@ -107,7 +81,7 @@ impl TrackerConfig {
         positive(self.ukf.alpha, "ukf.alpha")?;
         non_negative(self.ukf.beta, "ukf.beta")?;
         non_negative(self.ukf.kappa, "ukf.kappa")?;
-        check(
+        ConfigError::check(
             self.gate_probability.is_finite()
                 && self.gate_probability > 0.5
                 && self.gate_probability <= 1.0,
@@ -115,12 +89,12 @@ impl TrackerConfig {
             "must be in (0.5, 1]",
         )?;
         let g = &self.glmb;
-        check(
+        ConfigError::check(
             (1..=1_000_000).contains(&g.requested_hypotheses),
             "glmb.requested_hypotheses",
             "must be between 1 and 1000000",
         )?;
-        check(
+        ConfigError::check(
             (1..=1_000_000).contains(&g.max_hypotheses),
             "glmb.max_hypotheses",
             "must be between 1 and 1000000",
@@ -135,7 +109,7 @@ impl TrackerConfig {
         positive(f.mean_towards_s, "face.mean_towards_s")?;
         positive(f.mean_away_s, "face.mean_away_s")?;
         detect_probability(f.away_p_detect, "face.away_p_detect")?;
-        check(
+        ConfigError::check(
             f.away_p_detect <= self.camera.p_detect,
             "face.away_p_detect",
             "must not exceed camera.p_detect",
@@ -143,7 +117,7 @@ impl TrackerConfig {
         probability(f.initial_towards, "face.initial_towards")?;
         let e = &self.estimator;
         probability(e.hysteresis_existence, "estimator.hysteresis_existence")?;
-        check(
+        ConfigError::check(
             self.speaking_smoothing.is_finite()
                 && self.speaking_smoothing > 0.0
                 && self.speaking_smoothing <= 1.0,
@@ -153,7 +127,7 @@ impl TrackerConfig {
         let p = &self.gmphd;
         probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
         positive(p.merge_threshold, "gmphd.merge_threshold")?;
-        check(
+        ConfigError::check(
             (1..=100_000).contains(&p.max_components),
             "gmphd.max_components",
             "must be between 1 and 100000",
@@ -167,7 +141,7 @@ impl TrackerConfig {
         let b = &self.birth;
         for (i, f) in b.fixed.iter().enumerate() {
             for (j, v) in f.position.iter().enumerate() {
-                check(
+                ConfigError::check(
                     v.is_finite(),
                     &format!("birth.fixed[{i}].position[{j}]"),
                     "must be finite",
@@ -186,7 +160,7 @@ impl TrackerConfig {
         positive(b.expected_births, "birth.expected_births")?;
         probability_open(b.max_existence, "birth.max_existence")?;
         probability(b.max_association, "birth.max_association")?;
-        check(
+        ConfigError::check(
             b.max_per_step <= 64,
             "birth.max_per_step",
             "must be at most 64",
@@ -194,13 +168,13 @@ impl TrackerConfig {
         positive(b.position_std_m, "birth.position_std_m")?;
         positive(b.velocity_std_m_per_s, "birth.velocity_std_m_per_s")?;
         let [d0, d1] = b.camera_depth_range_m;
-        check(
+        ConfigError::check(
             d0.is_finite() && d1.is_finite() && d0 > 0.0 && d1 > d0,
             "birth.camera_depth_range_m",
             "must be [near, far] with 0 < near < far",
         )?;
         positive(b.direction_range_m, "birth.direction_range_m")?;
-        check(
+        ConfigError::check(
             b.default_height_m.is_finite(),
             "birth.default_height_m",
             "must be finite",
