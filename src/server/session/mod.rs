@@ -15,12 +15,9 @@ use crate::geometry::Layout;
 use crate::label::Label;
 use crate::pipeline::input::check_audio;
 use crate::pipeline::{ConfigError, PipelineConfig};
-use crate::protocol::rest::{
-    SessionInfo, SessionMetrics, SessionState, SessionSummary, TrackHistory, TracksSnapshot,
-};
+use crate::protocol::rest::{SessionState, TracksSnapshot};
 use crate::protocol::{AudioFrame, ErrorBody};
 use crate::scene::DetectionFrame;
-use crate::scene::convert::{array_to_file, camera_to_file, region_to_file};
 
 use super::auth;
 use super::config::{Execution, Limits};
@@ -30,6 +27,7 @@ use super::worker;
 
 mod interest;
 mod messages;
+mod reads;
 
 pub use interest::{Interest, Subscription};
 pub use messages::{ControlError, Input, Output, Rejection};
@@ -493,100 +491,6 @@ impl Session {
     pub async fn configure(&self, settings: PipelineConfig) -> Result<(), ControlError> {
         self.control(|tx| Work::Configure(Box::new(settings), tx))
             .await
-    }
-
-    /// Track estimates from `from_step` on (all held when `None`), at most `limit`.
-    pub fn history(&self, from_step: Option<u64>, limit: usize) -> TrackHistory {
-        let Ok(h) = self.history.lock() else {
-            return TrackHistory {
-                oldest_step: None,
-                steps: Vec::new(),
-            };
-        };
-        let from = from_step.unwrap_or(0);
-        TrackHistory {
-            oldest_step: h.front().map(|s| s.step),
-            steps: h
-                .iter()
-                .filter(|s| s.step >= from)
-                .take(limit)
-                .cloned()
-                .collect(),
-        }
-    }
-
-    /// The latest accepted frame of each camera, in camera order.
-    pub fn latest_detections(&self) -> Vec<DetectionFrame> {
-        self.latest_detections
-            .lock()
-            .map(|m| m.values().cloned().collect())
-            .unwrap_or_default()
-    }
-
-    /// The latest track estimate.
-    pub fn latest_tracks(&self) -> Option<TracksSnapshot> {
-        self.history.lock().ok().and_then(|h| h.back().cloned())
-    }
-
-    /// The session's description with its current calibration.
-    pub fn info(&self) -> SessionInfo {
-        let layout = self.layout();
-        let (state, error) = self
-            .life
-            .lock()
-            .map_or((SessionState::Failed, None), |l| (l.state, l.error.clone()));
-        SessionInfo {
-            id: self.id.clone(),
-            name: self.name.clone(),
-            state,
-            error,
-            created_unix_s: self.created_unix_s,
-            sample_rate: self.sample_rate,
-            speed_of_sound: layout.speed_of_sound,
-            channels: self.channels,
-            arrays: layout.arrays.iter().map(array_to_file).collect(),
-            cameras: layout.cameras.iter().map(camera_to_file).collect(),
-            region: layout.region.as_ref().map(region_to_file),
-            step_s: self.step_s,
-            next_sample: self.next_sample(),
-            clients: self.clients(),
-            live_labels: self.live_labels(),
-        }
-    }
-
-    /// The session's line in a listing.
-    pub fn summary(&self) -> SessionSummary {
-        SessionSummary {
-            id: self.id.clone(),
-            name: self.name.clone(),
-            state: self.state(),
-            created_unix_s: self.created_unix_s,
-            clients: self.clients(),
-            next_sample: self.next_sample(),
-        }
-    }
-
-    /// The session's metrics.
-    pub fn metrics(&self) -> SessionMetrics {
-        let c = &self.counters;
-        let (latency, processing) = c.latencies();
-        let (audio_s, rtf) = c.real_time(self.sample_rate);
-        SessionMetrics {
-            state: self.state(),
-            frames_in: c.frames_in(),
-            refused: c.refusals(),
-            output_dropped: c.dropped(),
-            steps: c.steps(),
-            step_latency_ms: latency,
-            step_processing_ms: processing,
-            real_time_factor: rtf,
-            audio_s,
-            live_tracks: c.live_tracks.load(Ordering::Relaxed),
-            labels_total: c.labels_total.load(Ordering::Relaxed),
-            queue_depth: c.queue_depth.load(Ordering::Relaxed),
-            queue_capacity: self.limits.queue_depth,
-            clients: self.clients(),
-        }
     }
 
     // ---- used by the worker ----
