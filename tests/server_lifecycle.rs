@@ -59,7 +59,8 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         disconnect_at: Some(half),
         ..Default::default()
     };
-    stream_feed(&url, &s.token, &feed, &opts).await.unwrap();
+    let first = stream_feed(&url, &s.token, &feed, &opts).await.unwrap();
+    assert!(first.errors.is_empty(), "{:?}", first.errors);
     // Let the pipeline catch up with what was sent.
     let mut before: Option<TracksSnapshot> = None;
     for _ in 0..100 {

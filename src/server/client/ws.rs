@@ -137,6 +137,16 @@ async fn drive(
         if idx == stop && !finished {
             if opts.disconnect_at.is_some() {
                 got.sent = idx;
+                // Leave as a well-behaved client does: a close frame, then read until the server
+                // closes. Dropping the socket with outputs still unread makes the kernel reset
+                // the connection, and the server loses the input it had not read yet.
+                let _ = ws.close(None).await;
+                let drain = async {
+                    while let Some(Ok(m)) = ws.next().await {
+                        take(&mut got, m);
+                    }
+                };
+                let _ = tokio::time::timeout(Duration::from_secs(5), drain).await;
                 return Ok(got);
             }
             let finish = serde_json::to_string(&ClientMessage::Finish {}).map_err(cerr)?;
