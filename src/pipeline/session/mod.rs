@@ -200,6 +200,17 @@ impl Pipeline {
         self.separation.as_mut()?.detach(handoff)
     }
 
+    /// The refusal of a sensor frame at time `t` whose tracker step has already run, if it is.
+    fn late(&self, what: &str, t: f64) -> Option<InputError> {
+        let step_start = self.clock.step_bounds(self.next_step).0;
+        (t < step_start).then(|| {
+            let msg = format!(
+                "{what} at {t} s arrived after its tracker step ran (now at {step_start} s)"
+            );
+            InputError::new("late", "t", msg)
+        })
+    }
+
     fn reject<T>(&mut self, e: InputError) -> Result<T, InputError> {
         self.stats.rejected += 1;
         Err(e)
@@ -299,14 +310,9 @@ impl Pipeline {
         if let Err(e) = input::check_detections(&self.layout, &frame, last) {
             return self.reject(e);
         }
-        let step_start = self.clock.step_bounds(self.next_step).0;
-        if frame.t < step_start {
+        if let Some(e) = self.late("camera frame", frame.t) {
             self.stats.late_frames += 1;
-            let msg = format!(
-                "frame at {} s arrived after its tracker step ran (now at {step_start} s)",
-                frame.t
-            );
-            return self.reject(InputError::new("late", "t", msg));
+            return self.reject(e);
         }
         let min_score = self.cfg.min_box_score;
         frame
@@ -339,13 +345,8 @@ impl Pipeline {
         if let Err(e) = input::check_device_measurements(&self.layout, &frame, last) {
             return self.reject(e);
         }
-        let step_start = self.clock.step_bounds(self.next_step).0;
-        if frame.t < step_start {
-            return self.reject(InputError::new(
-                "late",
-                "t",
-                "measurement arrived after its tracker step ran",
-            ));
+        if let Some(e) = self.late("measurement frame", frame.t) {
+            return self.reject(e);
         }
         self.stats.device_frames_in += 1;
         self.devices[frame.array].push(frame);
