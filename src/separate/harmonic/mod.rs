@@ -18,6 +18,9 @@
 
 use super::config::HarmonicConfig;
 use crate::dsp::Complex;
+use comb::{COARSE, Comb, REFINED, Score, hann_power};
+
+mod comb;
 
 /// Relative step of the F0 candidate grid (0.5 %: the 20th harmonic moves by a tenth of its
 /// frequency's bin spacing at 2 kHz and 16 kHz / 1024).
@@ -58,6 +61,7 @@ pub struct Harmonic {
     boost: f64,
     leakage_exponent: f64,
     ownership_exponent: f64,
+    spatial_discount: f64,
     voicing_low: f64,
     voicing_high: f64,
     hz_per_bin: f64,
@@ -88,6 +92,7 @@ impl Harmonic {
             boost: cfg.boost,
             leakage_exponent: cfg.leakage_exponent,
             ownership_exponent: cfg.ownership_exponent,
+            spatial_discount: cfg.spatial_discount,
             voicing_low: cfg.voicing_low,
             voicing_high: cfg.voicing_high,
             hz_per_bin,
@@ -251,111 +256,42 @@ impl Harmonic {
     /// Regroups one bin: `gains` are the labels' spatial gains, `unresolved` how ambiguous each
     /// label's claim is (0 keeps its gain), `evidence` each label's voicing times comb membership.
     /// The pooled gain of the unresolved claims is shared in proportion to
-    /// gain x (1 + boost x evidence); the result is floored at `floor`.
+    /// gain^(1 - spatial_discount x unresolved) x (1 + boost x evidence): the spatial gain
+    /// counts as far as the bin is resolved. The result is floored at `floor`.
     pub fn regroup(&self, gains: &mut [f64], unresolved: &[f64], evidence: &[f64], floor: f64) {
         let mut pool = 0.0;
         let mut weight = 0.0;
         for ((g, u), e) in gains.iter().zip(unresolved).zip(evidence) {
             pool += u * g;
-            weight += u * g * (1.0 + self.boost * e);
+            weight += u * self.spatial_weight(*g, *u) * (1.0 + self.boost * e);
         }
         if pool <= 0.0 || weight <= 0.0 {
             return;
         }
         for ((g, u), e) in gains.iter_mut().zip(unresolved).zip(evidence) {
-            let share = u * *g * (1.0 + self.boost * e) / weight;
+            let share = u * self.spatial_weight(*g, *u) * (1.0 + self.boost * e) / weight;
             let v = (1.0 - u) * *g + pool * share;
             *g = if v.is_finite() { v.max(floor) } else { *g };
         }
     }
-}
 
-/// Coarse candidate spacing of the F0 search (in fine grid steps).
-const COARSE: usize = 4;
-/// Coarse candidates refined on the fine grid.
-const REFINED: usize = 4;
-
-/// A comb's normalised score, its salience (mean peak-minus-valley magnitude) and its
-/// selection score.
-type Score = (f64, f64, f64);
-
-/// One spectrum's interpolation table for scoring harmonic combs.
-struct Comb<'a> {
-    /// Per bin: the magnitude and reliability there and at the next bin (the last bin's next is
-    /// itself), so each linear interpolation reads one entry.
-    table: &'a [[f64; 4]],
-    kmax: f64,
-    hz_per_bin: f64,
-}
-
-impl<'a> Comb<'a> {
-    fn new(
-        mag: &[f64],
-        reliability: &[f64],
-        k_max: f64,
-        hz_per_bin: f64,
-        scratch: &'a mut Vec<[f64; 4]>,
-    ) -> Option<Self> {
-        let len = mag.len().min(reliability.len());
-        let kmax = k_max.min(len as f64 - 1.0);
-        if kmax < 2.0 {
-            return None;
+    /// A spatial gain `g` (>= 0) as evidence in a bin of ambiguity `u`: g^(1 - discount x
+    /// leakage), the leakage being the one `u` was computed from.
+    fn spatial_weight(&self, g: f64, u: f64) -> f64 {
+        if self.spatial_discount <= 0.0 {
+            return g;
         }
-        scratch.clear();
-        scratch.extend((0..len).map(|i| {
-            let j = (i + 1).min(len - 1);
-            [mag[i], mag[j], reliability[i], reliability[j]]
-        }));
-        Some(Self {
-            table: scratch,
-            kmax,
-            hz_per_bin,
-        })
-    }
-
-    /// Raises `best` to the best of `f0s` by selection score times `prefer(f0)` (the first of
-    /// equals); the kept score is the comb's own.
-    fn best(&self, f0s: &[f64], prefer: impl Fn(f64) -> f64, best: &mut (f64, Score, f64)) {
-        for &f0 in f0s {
-            let sc = self.score(f0);
-            let select = sc.2 * prefer(f0);
-            if select > best.2 {
-                *best = (f0, sc, select);
-            }
+        let leakage = power(u, 1.0 / self.leakage_exponent.max(1e-9));
+        let e = 1.0 - self.spatial_discount * leakage;
+        if e >= 1.0 {
+            g
+        } else if e <= 0.0 {
+            1.0
+        } else if g > 0.0 {
+            g.powf(e)
+        } else {
+            0.0
         }
-    }
-
-    /// Peak-minus-valley comb of `f0` over the harmonics up to `kmax`, each weighted by its
-    /// bin's reliability.
-    fn score(&self, f0: f64) -> Score {
-        let table = self.table;
-        // 0 <= x <= kmax < len: truncation is the floor.
-        let entry = |x: f64| {
-            let i = x as usize;
-            (&table[i.min(table.len() - 1)], x - i as f64)
-        };
-        let step = f0 / self.hz_per_bin;
-        let (mut num, mut den, mut wsum) = (0.0, 0.0, 0.0);
-        let mut x = step;
-        while x <= self.kmax {
-            let (e, t) = entry(x);
-            let w = e[2] * (1.0 - t) + e[3] * t;
-            if w > 0.0 {
-                let peak = e[0] * (1.0 - t) + e[1] * t;
-                let (v, tv) = entry(x - 0.5 * step);
-                let valley = v[0] * (1.0 - tv) + v[1] * tv;
-                num += w * (peak - valley);
-                den += w * (peak + valley);
-                wsum += w;
-            }
-            x += step;
-        }
-        // The normalised score alone ties F0 with its odd multiples (their valleys fall on
-        // inter-harmonic gaps too) and the peak sum alone ties it with F0 / 2; their product
-        // peaks at F0 only.
-        let score = if den > 1e-300 { num / den } else { 0.0 };
-        let salience = if wsum > 0.0 { num / wsum } else { 0.0 };
-        (score, salience, num.max(0.0) * score)
     }
 }
 
@@ -396,25 +332,12 @@ fn power(x: f64, e: f64) -> f64 {
         x
     } else if e == 2.0 {
         x * x
+    } else if e == 4.0 {
+        let y = x * x;
+        y * y
     } else {
         x.powf(e)
     }
-}
-
-/// Power response of the periodic Hann window at `d` bins from a sinusoid (1 at 0, 0 from 2).
-fn hann_power(d: f64) -> f64 {
-    if d >= 2.0 {
-        return 0.0;
-    }
-    if d < 1e-9 {
-        return 1.0;
-    }
-    if (d - 1.0).abs() < 1e-9 {
-        return 0.25;
-    }
-    let x = std::f64::consts::PI * d;
-    let a = x.sin() / x / (1.0 - d * d);
-    a * a
 }
 
 #[cfg(test)]
@@ -629,10 +552,47 @@ mod tests {
         assert!(g[0] > 0.8 && g[1] < 0.1, "{g:?}");
         assert_eq!(g[2], 0.1);
         assert!((g[0] + g[1] - 0.9).abs() < 0.05 + 1e-12);
-        // No evidence: the spatial split stays.
+        // No evidence in a bin the array cannot resolve at all: the gains there only say who is
+        // louder, so the pool is split evenly; where it is mostly unresolved, the louder label keeps
+        // part of its lead; with the discount off, the spatial split stays.
         let mut g = vec![0.6, 0.3];
         h.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05);
+        assert!(
+            (g[0] - 0.45).abs() < 1e-12 && (g[1] - 0.45).abs() < 1e-12,
+            "{g:?}"
+        );
+        let mut g = vec![0.6, 0.3];
+        h.regroup(&mut g, &[0.9, 0.9], &[0.0, 0.0], 0.05);
+        assert!(g[0] > 0.45 + 0.01 && g[0] < 0.6 - 0.01, "{g:?}");
+        assert!((g[0] + g[1] - 0.9).abs() < 1e-12);
+        let spatial = Harmonic::new(
+            &HarmonicConfig {
+                spatial_discount: 0.0,
+                ..HarmonicConfig::default()
+            },
+            FS / N as f64,
+            FS / (N / 2) as f64,
+        );
+        let mut g = vec![0.6, 0.3];
+        spatial.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05);
         assert!((g[0] - 0.6).abs() < 1e-12 && (g[1] - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_quiet_talker_keeps_its_harmonic_in_a_bin_the_array_cannot_resolve() {
+        let h = harmonic();
+        // The loud label's gain leads 0.9 : 0.1 only because it is louder; the bin lies on the
+        // quiet label's comb and between the loud label's harmonics.
+        let mut g = vec![0.9, 0.1];
+        h.regroup(&mut g, &[1.0, 1.0], &[0.0, 1.0], 0.05);
+        assert!(g[1] > 0.9 && g[0] < 0.1, "{g:?}");
+        // On both combs the bin is shared evenly.
+        let mut g = vec![0.9, 0.1];
+        h.regroup(&mut g, &[1.0, 1.0], &[1.0, 1.0], 0.05);
+        assert!(
+            (g[0] - 0.5).abs() < 1e-9 && (g[1] - 0.5).abs() < 1e-9,
+            "{g:?}"
+        );
     }
 
     #[test]

@@ -1,0 +1,112 @@
+//! The peak-minus-valley harmonic comb that scores F0 candidates on one magnitude spectrum,
+//! and the analysis window's response that says how far a harmonic spreads over the bins.
+
+/// Coarse candidate spacing of the F0 search (in fine grid steps).
+pub(super) const COARSE: usize = 4;
+/// Coarse candidates refined on the fine grid.
+pub(super) const REFINED: usize = 4;
+
+/// A comb's normalised score, its salience (mean peak-minus-valley magnitude) and its
+/// selection score.
+pub(super) type Score = (f64, f64, f64);
+
+/// One spectrum's interpolation table for scoring harmonic combs.
+pub(super) struct Comb<'a> {
+    /// Per bin: the magnitude and reliability there and at the next bin (the last bin's next is
+    /// itself), so each linear interpolation reads one entry.
+    table: &'a [[f64; 4]],
+    kmax: f64,
+    hz_per_bin: f64,
+}
+
+impl<'a> Comb<'a> {
+    pub(super) fn new(
+        mag: &[f64],
+        reliability: &[f64],
+        k_max: f64,
+        hz_per_bin: f64,
+        scratch: &'a mut Vec<[f64; 4]>,
+    ) -> Option<Self> {
+        let len = mag.len().min(reliability.len());
+        let kmax = k_max.min(len as f64 - 1.0);
+        if kmax < 2.0 {
+            return None;
+        }
+        scratch.clear();
+        scratch.extend((0..len).map(|i| {
+            let j = (i + 1).min(len - 1);
+            [mag[i], mag[j], reliability[i], reliability[j]]
+        }));
+        Some(Self {
+            table: scratch,
+            kmax,
+            hz_per_bin,
+        })
+    }
+
+    /// Raises `best` to the best of `f0s` by selection score times `prefer(f0)` (the first of
+    /// equals); the kept score is the comb's own.
+    pub(super) fn best(
+        &self,
+        f0s: &[f64],
+        prefer: impl Fn(f64) -> f64,
+        best: &mut (f64, Score, f64),
+    ) {
+        for &f0 in f0s {
+            let sc = self.score(f0);
+            let select = sc.2 * prefer(f0);
+            if select > best.2 {
+                *best = (f0, sc, select);
+            }
+        }
+    }
+
+    /// Peak-minus-valley comb of `f0` over the harmonics up to `kmax`, each weighted by its
+    /// bin's reliability.
+    pub(super) fn score(&self, f0: f64) -> Score {
+        let table = self.table;
+        // 0 <= x <= kmax < len: truncation is the floor.
+        let entry = |x: f64| {
+            let i = x as usize;
+            (&table[i.min(table.len() - 1)], x - i as f64)
+        };
+        let step = f0 / self.hz_per_bin;
+        let (mut num, mut den, mut wsum) = (0.0, 0.0, 0.0);
+        let mut x = step;
+        while x <= self.kmax {
+            let (e, t) = entry(x);
+            let w = e[2] * (1.0 - t) + e[3] * t;
+            if w > 0.0 {
+                let peak = e[0] * (1.0 - t) + e[1] * t;
+                let (v, tv) = entry(x - 0.5 * step);
+                let valley = v[0] * (1.0 - tv) + v[1] * tv;
+                num += w * (peak - valley);
+                den += w * (peak + valley);
+                wsum += w;
+            }
+            x += step;
+        }
+        // The normalised score alone ties F0 with its odd multiples (their valleys fall on
+        // inter-harmonic gaps too) and the peak sum alone ties it with F0 / 2; their product
+        // peaks at F0 only.
+        let score = if den > 1e-300 { num / den } else { 0.0 };
+        let salience = if wsum > 0.0 { num / wsum } else { 0.0 };
+        (score, salience, num.max(0.0) * score)
+    }
+}
+
+/// Power response of the periodic Hann window at `d` bins from a sinusoid (1 at 0, 0 from 2).
+pub(super) fn hann_power(d: f64) -> f64 {
+    if d >= 2.0 {
+        return 0.0;
+    }
+    if d < 1e-9 {
+        return 1.0;
+    }
+    if (d - 1.0).abs() < 1e-9 {
+        return 0.25;
+    }
+    let x = std::f64::consts::PI * d;
+    let a = x.sin() / x / (1.0 - d * d);
+    a * a
+}
