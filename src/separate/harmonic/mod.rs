@@ -7,7 +7,8 @@
 //! post-filtered spectrum in the bins the array does resolve for it (peak-minus-valley harmonic
 //! comb, Hermes-style subharmonic summation), and in the unresolved bins the labels' pooled gain
 //! is redistributed towards the labels whose harmonic comb passes through the bin (a product of
-//! the spatial gain and the harmonic evidence, so without any evidence the split stays spatial).
+//! the harmonic evidence and the spatial gain, the latter counting only as far as the pair is
+//! resolved: where the beamformers pass the same mixture it only says who is louder).
 //! Each label keeps a pitch register, the running mean of the log F0s it owned, and the search
 //! prefers candidates inside it: in a frame where a neighbour's leak is as strong as the label's
 //! own voice, the label keeps its own pitch instead of taking the neighbour's.
@@ -60,6 +61,8 @@ const SAME_F0: f64 = 0.0289;
 pub struct Harmonic {
     boost: f64,
     leakage_exponent: f64,
+    /// 1 / `leakage_exponent`: recovers a leakage from its unresolved value.
+    inverse_leakage_exponent: f64,
     ownership_exponent: f64,
     spatial_discount: f64,
     voicing_low: f64,
@@ -91,6 +94,7 @@ impl Harmonic {
         Self {
             boost: cfg.boost,
             leakage_exponent: cfg.leakage_exponent,
+            inverse_leakage_exponent: 1.0 / cfg.leakage_exponent.max(1e-9),
             ownership_exponent: cfg.ownership_exponent,
             spatial_discount: cfg.spatial_discount,
             voicing_low: cfg.voicing_low,
@@ -256,32 +260,42 @@ impl Harmonic {
     /// Regroups one bin: `gains` are the labels' spatial gains, `unresolved` how ambiguous each
     /// label's claim is (0 keeps its gain), `evidence` each label's voicing times comb membership.
     /// The pooled gain of the unresolved claims is shared in proportion to
-    /// gain^(1 - spatial_discount x unresolved) x (1 + boost x evidence): the spatial gain
-    /// counts as far as the bin is resolved. The result is floored at `floor`.
-    pub fn regroup(&self, gains: &mut [f64], unresolved: &[f64], evidence: &[f64], floor: f64) {
+    /// gain^(1 - spatial_discount x leakage) x (1 + boost x evidence): the spatial gain counts
+    /// as far as the bin is resolved. The result is floored at `floor`. `shares` is scratch.
+    pub fn regroup(
+        &self,
+        gains: &mut [f64],
+        unresolved: &[f64],
+        evidence: &[f64],
+        floor: f64,
+        shares: &mut Vec<f64>,
+    ) {
+        shares.clear();
         let mut pool = 0.0;
         let mut weight = 0.0;
         for ((g, u), e) in gains.iter().zip(unresolved).zip(evidence) {
+            let w = u * self.spatial_weight(*g, *u) * (1.0 + self.boost * e);
+            shares.push(w);
             pool += u * g;
-            weight += u * self.spatial_weight(*g, *u) * (1.0 + self.boost * e);
+            weight += w;
         }
         if pool <= 0.0 || weight <= 0.0 {
             return;
         }
-        for ((g, u), e) in gains.iter_mut().zip(unresolved).zip(evidence) {
-            let share = u * self.spatial_weight(*g, *u) * (1.0 + self.boost * e) / weight;
-            let v = (1.0 - u) * *g + pool * share;
+        for ((g, u), w) in gains.iter_mut().zip(unresolved).zip(shares.iter()) {
+            let v = (1.0 - u) * *g + pool * (w / weight);
             *g = if v.is_finite() { v.max(floor) } else { *g };
         }
     }
 
     /// A spatial gain `g` (>= 0) as evidence in a bin of ambiguity `u`: g^(1 - discount x
-    /// leakage), the leakage being the one `u` was computed from.
+    /// leakage). The bank keeps only `u` per bin and label; the leakage it came from follows
+    /// exactly, since [`Harmonic::unresolved`] is a power of it.
     fn spatial_weight(&self, g: f64, u: f64) -> f64 {
         if self.spatial_discount <= 0.0 {
             return g;
         }
-        let leakage = power(u, 1.0 / self.leakage_exponent.max(1e-9));
+        let leakage = power(u, self.inverse_leakage_exponent);
         let e = 1.0 - self.spatial_discount * leakage;
         if e >= 1.0 {
             g
@@ -548,7 +562,13 @@ mod tests {
         // Labels 0 and 1 are collinear here, label 2 is resolved; the spatial split is even.
         let mut g = vec![0.45, 0.45, 0.1];
         let unresolved = [1.0, 1.0, 0.0];
-        h.regroup(&mut g, &unresolved, &[h.membership(f0, k), 0.0, 1.0], 0.05);
+        h.regroup(
+            &mut g,
+            &unresolved,
+            &[h.membership(f0, k), 0.0, 1.0],
+            0.05,
+            &mut Vec::new(),
+        );
         assert!(g[0] > 0.8 && g[1] < 0.1, "{g:?}");
         assert_eq!(g[2], 0.1);
         assert!((g[0] + g[1] - 0.9).abs() < 0.05 + 1e-12);
@@ -556,13 +576,13 @@ mod tests {
         // louder, so the pool is split evenly; where it is mostly unresolved, the louder label keeps
         // part of its lead; with the discount off, the spatial split stays.
         let mut g = vec![0.6, 0.3];
-        h.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05);
+        h.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05, &mut Vec::new());
         assert!(
             (g[0] - 0.45).abs() < 1e-12 && (g[1] - 0.45).abs() < 1e-12,
             "{g:?}"
         );
         let mut g = vec![0.6, 0.3];
-        h.regroup(&mut g, &[0.9, 0.9], &[0.0, 0.0], 0.05);
+        h.regroup(&mut g, &[0.9, 0.9], &[0.0, 0.0], 0.05, &mut Vec::new());
         assert!(g[0] > 0.45 + 0.01 && g[0] < 0.6 - 0.01, "{g:?}");
         assert!((g[0] + g[1] - 0.9).abs() < 1e-12);
         let spatial = Harmonic::new(
@@ -574,7 +594,7 @@ mod tests {
             FS / (N / 2) as f64,
         );
         let mut g = vec![0.6, 0.3];
-        spatial.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05);
+        spatial.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05, &mut Vec::new());
         assert!((g[0] - 0.6).abs() < 1e-12 && (g[1] - 0.3).abs() < 1e-12);
     }
 
@@ -584,11 +604,11 @@ mod tests {
         // The loud label's gain leads 0.9 : 0.1 only because it is louder; the bin lies on the
         // quiet label's comb and between the loud label's harmonics.
         let mut g = vec![0.9, 0.1];
-        h.regroup(&mut g, &[1.0, 1.0], &[0.0, 1.0], 0.05);
+        h.regroup(&mut g, &[1.0, 1.0], &[0.0, 1.0], 0.05, &mut Vec::new());
         assert!(g[1] > 0.9 && g[0] < 0.1, "{g:?}");
         // On both combs the bin is shared evenly.
         let mut g = vec![0.9, 0.1];
-        h.regroup(&mut g, &[1.0, 1.0], &[1.0, 1.0], 0.05);
+        h.regroup(&mut g, &[1.0, 1.0], &[1.0, 1.0], 0.05, &mut Vec::new());
         assert!(
             (g[0] - 0.5).abs() < 1e-9 && (g[1] - 0.5).abs() < 1e-9,
             "{g:?}"

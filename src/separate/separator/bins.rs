@@ -427,6 +427,7 @@ impl Separator {
                 u,
                 &w.evidence,
                 floor,
+                &mut w.shares,
             );
         }
     }

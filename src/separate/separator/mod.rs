@@ -97,6 +97,8 @@ struct Work {
     pitch: Vec<Pitch>,
     ownership: Vec<f64>,
     evidence: Vec<f64>,
+    /// Per stream: its weight in the current bin's regrouping.
+    shares: Vec<f64>,
     energy: Vec<f64>,
     present: Vec<bool>,
 }
