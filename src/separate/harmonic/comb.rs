@@ -64,6 +64,12 @@ impl<'a> Comb<'a> {
     /// Peak-minus-valley comb of `f0` over the harmonics up to `kmax`, each weighted by its
     /// bin's reliability.
     pub(super) fn score(&self, f0: f64) -> Score {
+        self.score_below(f0, self.kmax)
+    }
+
+    /// [`Comb::score`] over the harmonics up to bin `kmax` only (at most the comb's own top).
+    pub(super) fn score_below(&self, f0: f64, kmax: f64) -> Score {
+        let kmax = kmax.min(self.kmax);
         let table = self.table;
         // 0 <= x <= kmax < len: truncation is the floor.
         let entry = |x: f64| {
@@ -73,7 +79,7 @@ impl<'a> Comb<'a> {
         let step = f0 / self.hz_per_bin;
         let (mut num, mut den, mut wsum) = (0.0, 0.0, 0.0);
         let mut x = step;
-        while x <= self.kmax {
+        while x <= kmax {
             let (e, t) = entry(x);
             let w = e[2] * (1.0 - t) + e[3] * t;
             if w > 0.0 {

@@ -24,8 +24,17 @@ use comb::{COARSE, Comb, REFINED, Score, hann_power};
 mod comb;
 
 /// Relative step of the F0 candidate grid (0.5 %: the 20th harmonic moves by a tenth of its
-/// frequency's bin spacing at 2 kHz and 16 kHz / 1024).
+/// frequency's bin spacing at 2 kHz and 16 kHz / 1024). Half of it, with the analysis read
+/// up to 4 kHz, measured within noise (paper-linear6 seeds 1-6 +0.15 dB, uca8 seeds 1-3
+/// -0.05 dB SI-SDRi) at twice the F0 search's cost.
 const GRID_STEP: f64 = 0.005;
+
+/// Highest frequency (Hz) the coarse stage of the F0 search reads: it only has to find the
+/// neighbourhoods the fine stage searches with every harmonic up to `max_frequency_hz`.
+/// With the analysis up to 4 kHz this keeps the full search's separation (paper-linear6 seeds
+/// 1-6 +5.14 dB SI-SDRi either way, uca8 seeds 1-3 +8.29 / +8.24 dB) at a third of its extra
+/// cost (whole pipeline, uca8: +3 % CPU against the 2 kHz analysis instead of +10 %).
+const COARSE_TOP_HZ: f64 = 2000.0;
 
 /// One label's pitch in one frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -70,6 +79,8 @@ pub struct Harmonic {
     hz_per_bin: f64,
     /// Highest bin (exclusive, fractional) the F0 analysis reads.
     k_max: f64,
+    /// Highest bin the coarse stage of the F0 search reads.
+    k_coarse: f64,
     /// F0 candidates (Hz), log-spaced.
     candidates: Vec<f64>,
     unresolved_floor: f64,
@@ -101,6 +112,7 @@ impl Harmonic {
             voicing_high: cfg.voicing_high,
             hz_per_bin,
             k_max: cfg.max_frequency_hz / hz_per_bin.max(1e-12),
+            k_coarse: COARSE_TOP_HZ / hz_per_bin.max(1e-12),
             candidates,
             unresolved_floor: power(0.0, cfg.leakage_exponent),
             register_sigma: cfg.register_semitones * std::f64::consts::LN_2 / 12.0,
@@ -163,10 +175,11 @@ impl Harmonic {
     /// weight `reliability[k]` (0 ignores it), preferring F0s inside the label's `register`.
     /// `scratch` holds the interpolation table.
     ///
-    /// Coarse to fine: the comb is scored on every [`COARSE`]th candidate, then on the fine
-    /// grid around the [`REFINED`] best coarse ones (a third of the exhaustive search's work;
-    /// the selection score varies smoothly enough over a coarse step that the exhaustive
-    /// search's winner lies next to one of the best coarse candidates).
+    /// Coarse to fine: the comb is scored on every [`COARSE`]th candidate with the harmonics up
+    /// to [`COARSE_TOP_HZ`], then with all of them on the fine grid around the [`REFINED`] best
+    /// coarse ones (a fraction of the exhaustive search's work; the selection score varies
+    /// smoothly enough over a coarse step that the exhaustive search's winner lies next to one
+    /// of the best coarse candidates).
     pub fn pitch(
         &self,
         mag: &[f64],
@@ -183,7 +196,7 @@ impl Harmonic {
         let mut top = [(usize::MAX, 0.0f64); REFINED];
         for i in (0..n).step_by(COARSE) {
             let f0 = self.candidates[i];
-            let select = comb.score(f0).2 * prefer(f0);
+            let select = comb.score_below(f0, self.k_coarse).2 * prefer(f0);
             if let Some(at) = top.iter().position(|t| select > t.1) {
                 top[at..].rotate_right(1);
                 top[at] = (i, select);
@@ -531,25 +544,34 @@ mod tests {
             h.ownership(&[p, q], &mut own);
             assert!(own[0] > 0.9 && own[1] < 0.02, "{own:?}");
         }
-        // Noise has no pitch.
+        // Noise has no pitch: one frame in ten may pass a lucky comb, weakly.
         let mut s = 7u64;
-        let noise: Vec<f64> = (0..N)
+        let mut voicing: Vec<f64> = (0..50)
             .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+                let noise: Vec<f64> = (0..N)
+                    .map(|_| {
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+                    })
+                    .collect();
+                h.pitch(
+                    &spectrum(&noise),
+                    &vec![1.0; N / 2 + 1],
+                    &Register::default(),
+                    &mut Vec::new(),
+                )
+                .voicing
             })
             .collect();
-        let v = h
-            .pitch(
-                &spectrum(&noise),
-                &vec![1.0; N / 2 + 1],
-                &Register::default(),
-                &mut Vec::new(),
-            )
-            .voicing;
-        assert!(v < 0.1, "noise voicing {v}");
+        voicing.sort_by(f64::total_cmp);
+        assert!(voicing[25] < 0.05, "median noise voicing {}", voicing[25]);
+        assert!(
+            voicing[45] < 0.25,
+            "90th percentile noise voicing {}",
+            voicing[45]
+        );
     }
 
     #[test]
