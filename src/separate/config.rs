@@ -128,6 +128,22 @@ pub struct AdaptationConfig {
     pub per_bin: bool,
     /// Smoothing factor per frame of the fixed-beamformer powers used by `per_bin`.
     pub power_smoothing: f64,
+    /// With `per_bin` and two labels or more: a bin where the label's own fixed beamformer
+    /// (nulls toward the others) carries most of the labels' power counts as its target
+    /// talking, whatever the tracker says, so a talker the localiser missed (speaking 0) is
+    /// not cancelled by its own canceller. Full pipeline, on against off: paper-linear6 seeds
+    /// 1-6 +5.39 / +5.14 dB SI-SDRi (1.33 / 1.28 streams per talker); uca8 three talkers
+    /// seeds 1-3 +8.55 / +8.29 dB (1.11 / 1.22 streams), 4-6 +7.95 / +7.77 dB; with oracle
+    /// tracks within 0.11 dB. Its cost: an untracked interferer is cancelled less in the bins
+    /// where it dominates a label's output.
+    pub dominance_guard: bool,
+    /// Share of the bin's fixed-beamformer power (among all labels) at or below which the
+    /// guard leaves the presence as it is. 0.5 / 0.8 (default) against 0.4 / 0.7, 0.6 / 0.9
+    /// and 0.5 / 1.0 (measured with the guard also on a lone label): paper-linear6 +5.53
+    /// against +5.41, +5.44 and +5.44 dB, uca8 +8.52 against +8.37, +8.46 and +8.46 dB.
+    pub dominance_low: f64,
+    /// Share at or above which the guard freezes the label's adaptation in the bin.
+    pub dominance_high: f64,
 }
 
 impl Default for AdaptationConfig {
@@ -137,6 +153,9 @@ impl Default for AdaptationConfig {
             presence_high: 0.4,
             per_bin: true,
             power_smoothing: 0.5,
+            dominance_guard: true,
+            dominance_low: 0.5,
+            dominance_high: 0.8,
         }
     }
 }
@@ -431,6 +450,14 @@ impl SeparatorConfig {
             ));
         }
         in_range("adaptation.power_smoothing", a.power_smoothing, 0.0, 0.999)?;
+        in_range("adaptation.dominance_low", a.dominance_low, 0.0, 1.0)?;
+        in_range("adaptation.dominance_high", a.dominance_high, 0.0, 1.0)?;
+        if a.dominance_high <= a.dominance_low {
+            return Err(ConfigError::new(
+                "adaptation.dominance_high",
+                "must be above adaptation.dominance_low",
+            ));
+        }
         let p = &self.post_filter;
         in_range("post_filter.gain_floor", p.gain_floor, 0.0, 1.0)?;
         in_range("post_filter.power_smoothing", p.power_smoothing, 0.0, 0.999)?;
@@ -554,6 +581,9 @@ mod tests {
         let mut c = SeparatorConfig::default();
         c.adaptation.presence_high = 0.1;
         assert_eq!(c.validate().unwrap_err().field, "adaptation.presence_high");
+        let mut c = SeparatorConfig::default();
+        c.adaptation.dominance_high = 0.5;
+        assert_eq!(c.validate().unwrap_err().field, "adaptation.dominance_high");
         let c = SeparatorConfig {
             max_frequency_hz: Some(f64::NAN),
             ..SeparatorConfig::default()

@@ -4,7 +4,7 @@
 use super::{POWER_SMOOTHING, Separator};
 use crate::dsp::Complex;
 use crate::label::Label;
-use crate::separate::config::{BeamformerKind, PostFilterTarget};
+use crate::separate::config::{AdaptationConfig, BeamformerKind, PostFilterTarget};
 use crate::separate::harmonic::{self, Pitch};
 use crate::separate::mvdr;
 use crate::separate::rls::{self, RlsStep};
@@ -122,13 +122,10 @@ impl Separator {
             *p = a.power_smoothing * *p + (1.0 - a.power_smoothing) * f.norm_sqr();
             total += *p;
         }
+        let n = self.streams.len();
         for (s, b) in self.streams.iter().zip(w.beta.iter_mut()) {
-            let mut presence = s.presence;
-            if a.per_bin && total > 0.0 {
-                presence *= s.fixed_power[k] / total;
-            }
-            *b =
-                ((a.presence_high - presence) / (a.presence_high - a.presence_low)).clamp(0.0, 1.0);
+            let share = (a.per_bin && total > 0.0).then(|| s.fixed_power[k] / total);
+            *b = adaptation_weight(a, s.presence, share, n);
         }
     }
 
@@ -433,6 +430,28 @@ impl Separator {
     }
 }
 
+/// How fast a label's adaptive stage learns in one bin (1 fully, 0 frozen), from its target's
+/// `presence` and, per bin, its share of the `labels`' fixed-beamformer power: the share scales
+/// the presence down where interferers dominate, and with the dominance guard a bin the
+/// label's own beamformer dominates counts as its target talking.
+fn adaptation_weight(
+    a: &AdaptationConfig,
+    presence: f64,
+    share: Option<f64>,
+    labels: usize,
+) -> f64 {
+    let mut presence = presence;
+    if let Some(share) = share {
+        presence *= share;
+        // One label always has the whole share: that says nothing about its target.
+        if a.dominance_guard && labels >= 2 {
+            let guard = (share - a.dominance_low) / (a.dominance_high - a.dominance_low);
+            presence = presence.max(guard.clamp(0.0, 1.0));
+        }
+    }
+    ((a.presence_high - presence) / (a.presence_high - a.presence_low)).clamp(0.0, 1.0)
+}
+
 fn delay_and_sum(a: &[Complex], y: &[Complex]) -> Complex {
     let mut num = Complex::new(0.0, 0.0);
     let mut den = 0.0;
@@ -444,5 +463,34 @@ fn delay_and_sum(a: &[Complex], y: &[Complex]) -> Complex {
         num / den
     } else {
         Complex::new(0.0, 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_label_its_own_beamformer_dominates_is_not_adapted_even_when_the_tracker_says_silent() {
+        let a = AdaptationConfig::default();
+        // Silent by the tracker, the bin carried by an interferer: learn it.
+        assert_eq!(adaptation_weight(&a, 0.0, Some(0.2), 3), 1.0);
+        // Silent by the tracker, yet its own output carries the bin: its target talks there.
+        assert_eq!(adaptation_weight(&a, 0.0, Some(0.9), 3), 0.0);
+        // In between, the step is weighted.
+        let mid = adaptation_weight(&a, 0.0, Some(0.6), 3);
+        assert!(mid > 0.0 && mid < 1.0, "{mid}");
+        // Talking by the tracker in a bin it dominates: frozen as before.
+        assert_eq!(adaptation_weight(&a, 1.0, Some(0.9), 3), 0.0);
+        // A lone label has the whole share: the guard says nothing, the tracker decides.
+        assert_eq!(adaptation_weight(&a, 0.0, Some(1.0), 1), 1.0);
+        // Guard off: the previous rule.
+        let off = AdaptationConfig {
+            dominance_guard: false,
+            ..AdaptationConfig::default()
+        };
+        assert_eq!(adaptation_weight(&off, 0.0, Some(0.9), 3), 1.0);
+        // Without per-bin shares the presence alone decides.
+        assert_eq!(adaptation_weight(&a, 0.0, None, 3), 1.0);
     }
 }
