@@ -396,6 +396,19 @@ fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
     }
 }
 
+/// Checks a pair of thresholds `{prefix}_low` < `{prefix}_high`, both in [0, 1].
+fn unit_interval(prefix: &str, low: f64, high: f64) -> Result<(), ConfigError> {
+    in_range(&format!("{prefix}_low"), low, 0.0, 1.0)?;
+    in_range(&format!("{prefix}_high"), high, 0.0, 1.0)?;
+    if high <= low {
+        return Err(ConfigError::new(
+            format!("{prefix}_high"),
+            format!("must be above {prefix}_low"),
+        ));
+    }
+    Ok(())
+}
+
 impl SeparatorConfig {
     /// The STFT geometry the separator expects.
     pub fn frame_geometry(&self) -> FrameGeometry {
@@ -441,23 +454,9 @@ impl SeparatorConfig {
         in_range("mvdr.forgetting", self.mvdr.forgetting, 0.5, 1.0 - 1e-9)?;
         in_range("mvdr.loading", self.mvdr.loading, 1e-9, 1e3)?;
         let a = &self.adaptation;
-        in_range("adaptation.presence_low", a.presence_low, 0.0, 1.0)?;
-        in_range("adaptation.presence_high", a.presence_high, 0.0, 1.0)?;
-        if a.presence_high <= a.presence_low {
-            return Err(ConfigError::new(
-                "adaptation.presence_high",
-                "must be above adaptation.presence_low",
-            ));
-        }
+        unit_interval("adaptation.presence", a.presence_low, a.presence_high)?;
         in_range("adaptation.power_smoothing", a.power_smoothing, 0.0, 0.999)?;
-        in_range("adaptation.dominance_low", a.dominance_low, 0.0, 1.0)?;
-        in_range("adaptation.dominance_high", a.dominance_high, 0.0, 1.0)?;
-        if a.dominance_high <= a.dominance_low {
-            return Err(ConfigError::new(
-                "adaptation.dominance_high",
-                "must be above adaptation.dominance_low",
-            ));
-        }
+        unit_interval("adaptation.dominance", a.dominance_low, a.dominance_high)?;
         let p = &self.post_filter;
         in_range("post_filter.gain_floor", p.gain_floor, 0.0, 1.0)?;
         in_range("post_filter.power_smoothing", p.power_smoothing, 0.0, 0.999)?;
