@@ -398,6 +398,14 @@ mod tests {
             .collect()
     }
 
+    /// The next value in [-0.5, 0.5) of a linear congruential generator seeded with `s`.
+    fn uniform(s: &mut u64) -> f64 {
+        *s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+
     fn voiced(f0: f64, amp: f64) -> Vec<f64> {
         (0..N)
             .map(|t| {
@@ -430,12 +438,7 @@ mod tests {
             let x: Vec<f64> = voiced(f1, 1.0)
                 .iter()
                 .zip(voiced(f2, a2))
-                .map(|(a, b)| {
-                    s = s
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    a + b + 0.05 * ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
-                })
+                .map(|(a, b)| a + b + 0.05 * uniform(&mut s))
                 .collect();
             let mag = spectrum(&x);
             let (p, q) = (
@@ -548,14 +551,7 @@ mod tests {
         let mut s = 7u64;
         let mut voicing: Vec<f64> = (0..50)
             .map(|_| {
-                let noise: Vec<f64> = (0..N)
-                    .map(|_| {
-                        s = s
-                            .wrapping_mul(6364136223846793005)
-                            .wrapping_add(1442695040888963407);
-                        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-                    })
-                    .collect();
+                let noise: Vec<f64> = (0..N).map(|_| uniform(&mut s)).collect();
                 h.pitch(
                     &spectrum(&noise),
                     &vec![1.0; N / 2 + 1],
