@@ -189,15 +189,6 @@ impl PositionSearch {
         }
         loop {
             let bx = bounding_box(&points);
-            if std::env::var("SRC_DEBUG").is_ok() {
-                let best = points.iter().map(|p| p.1).fold(f64::MIN, f64::max);
-                eprintln!(
-                    "SRC fe {evaluations} n {} vol {:.2e} size {:?} best {best:.3}",
-                    points.len(),
-                    volume(&bx),
-                    (bx.max - bx.min).as_slice()
-                );
-            }
             if volume(&bx) < self.min_volume || evaluations >= self.max_evaluations {
                 break;
             }
