@@ -213,9 +213,12 @@ pub struct HarmonicConfig {
     /// paper-linear6 seeds 1-3 +5.4 / +5.0 / +4.7 dB SI-SDRi (4-6: +2.4 / +2.2 / +1.9) with
     /// `ownership_exponent` 1.
     pub leakage_exponent: f64,
-    /// Exponent of a label's salience relative to the most salient label with the same F0
-    /// (leaked harmonics are discounted). 2 (default) against 1: paper-linear6 seeds 1-3
-    /// +5.50 / +5.36 dB SI-SDRi, seeds 4-6 +2.55 / +2.44 dB and 1.67 / 1.78 streams per talker.
+    /// Exponent of a label's share of a bin's harmonic evidence: its comb's strength (salience
+    /// x membership) relative to the strongest comb through the bin, so a neighbour's leaked
+    /// harmonics, read at the same F0 or at a subharmonic of it, are discounted. Full pipeline,
+    /// SI-SDRi (dB) for 1 / 2 / 4 (default) / 6 / 8: paper-linear6 seeds 1-6 +5.60 / +5.84 /
+    /// +5.98 / +6.04 / +6.09 (streams per talker 1.33 / 1.28 / 1.17 / 1.11 / 1.11), seeds 7-12
+    /// - / +5.73 / +5.93 / +6.01 / +6.04, uca8 seeds 1-3 +8.73 / +8.79 / +8.78 / +8.74 / +8.72.
     pub ownership_exponent: f64,
     /// How far the spatial gain's say in an unresolved bin shrinks with the pair's leakage l
     /// (the one `leakage_exponent` is applied to): the labels share the pooled gain in
@@ -269,7 +272,7 @@ impl Default for HarmonicConfig {
         Self {
             boost: 100.0,
             leakage_exponent: 0.25,
-            ownership_exponent: 2.0,
+            ownership_exponent: 4.0,
             spatial_discount: 1.0,
             f0_min_hz: 70.0,
             f0_max_hz: 400.0,

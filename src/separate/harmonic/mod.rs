@@ -62,9 +62,6 @@ pub struct Register {
 /// about an octave above the register is read at its subharmonic inside it.
 const REGISTER_MAX_CONFIDENCE: f64 = 0.9;
 
-/// Two F0s closer than this (natural log ratio, a quarter tone) count as the same.
-const SAME_F0: f64 = 0.0289;
-
 /// Harmonic grouping constants for one framing.
 #[derive(Debug, Clone)]
 pub struct Harmonic {
@@ -237,23 +234,65 @@ impl Harmonic {
         }
     }
 
-    /// How much each label's pitch is its own, in [0, 1]: its voicing times its salience
-    /// relative to the most salient label with the same F0 (within a quarter tone), to the power
-    /// `ownership_exponent`. A talker's harmonics leak, attenuated by the spatial gains, into the other
-    /// labels' outputs; there they show its F0 with less salience and are discounted.
+    /// How much each label's pitch is its own, in [0, 1]: its voicing times the mean, over its
+    /// harmonics up to `max_frequency_hz`, of its comb's share there (see
+    /// [`Harmonic::evidence`]). A talker's harmonics leak, attenuated by the spatial gains, into
+    /// the other labels' outputs; there they show its F0, or a subharmonic of it whose comb
+    /// passes through every one of its harmonics, with less salience and are discounted.
     pub fn ownership(&self, pitch: &[Pitch], out: &mut [f64]) {
-        let exponent = self.ownership_exponent;
         for (o, p) in out.iter_mut().zip(pitch) {
-            let top = pitch
-                .iter()
-                .filter(|q| q.f0 > 0.0 && p.f0 > 0.0 && (q.f0 / p.f0).ln().abs() < SAME_F0)
-                .map(|q| q.salience)
-                .fold(p.salience, f64::max);
-            *o = if top > 0.0 {
-                p.voicing * power(p.salience / top, exponent)
+            let step = p.f0 / self.hz_per_bin;
+            if !(step > 0.0 && p.voicing > 0.0) {
+                *o = 0.0;
+                continue;
+            }
+            let (mut sum, mut count) = (0.0, 0usize);
+            let mut kf = step;
+            while kf < self.k_max {
+                sum += self.share(pitch, p, kf);
+                count += 1;
+                kf += step;
+            }
+            *o = if count > 0 {
+                p.voicing * sum / count as f64
             } else {
                 0.0
             };
+        }
+    }
+
+    /// Each label's harmonic evidence at bin `k`: its voicing times its comb's membership there
+    /// times its share of the bin, (its comb's strength / the strongest comb's)^`ownership_exponent`,
+    /// a comb's strength being its salience times its membership. Two labels with the same F0
+    /// compare their saliences; a label whose F0 is a subharmonic of a louder one's loses the
+    /// bins the louder comb passes through and keeps those between them.
+    pub fn evidence(&self, pitch: &[Pitch], k: usize, out: &mut [f64]) {
+        let kf = k as f64;
+        let mut top = 0.0f64;
+        for (e, p) in out.iter_mut().zip(pitch) {
+            *e = self.membership_at(p.f0, kf);
+            top = top.max(p.salience * *e);
+        }
+        for (e, p) in out.iter_mut().zip(pitch) {
+            *e = if *e > 0.0 && top > 0.0 {
+                p.voicing * *e * power(p.salience * *e / top, self.ownership_exponent)
+            } else {
+                0.0
+            };
+        }
+    }
+
+    /// `p`'s share of (fractional) bin `kf` among the combs of `pitch` (which includes `p`).
+    fn share(&self, pitch: &[Pitch], p: &Pitch, kf: f64) -> f64 {
+        let own = p.salience * self.membership_at(p.f0, kf);
+        let top = pitch
+            .iter()
+            .map(|q| q.salience * self.membership_at(q.f0, kf))
+            .fold(own, f64::max);
+        if top > 0.0 {
+            power(own / top, self.ownership_exponent)
+        } else {
+            0.0
         }
     }
 
@@ -261,13 +300,17 @@ impl Harmonic {
     /// Hann) power response at the distance to the nearest harmonic, 1 on a harmonic, 0 two bins
     /// or more away.
     pub fn membership(&self, f0: f64, k: usize) -> f64 {
+        self.membership_at(f0, k as f64)
+    }
+
+    /// [`Harmonic::membership`] at a fractional bin.
+    fn membership_at(&self, f0: f64, kf: f64) -> f64 {
         if f0 <= 0.0 {
             return 0.0;
         }
-        let f = k as f64 * self.hz_per_bin;
-        let h = (f / f0).round().max(1.0);
-        let d = ((f - h * f0) / self.hz_per_bin).abs();
-        hann_power(d)
+        let step = f0 / self.hz_per_bin;
+        let h = (kf / step).round().max(1.0);
+        hann_power((kf - h * step).abs())
     }
 
     /// Regroups one bin: `gains` are the labels' spatial gains, `unresolved` how ambiguous each
@@ -568,6 +611,38 @@ mod tests {
             "90th percentile noise voicing {}",
             voicing[45]
         );
+    }
+
+    #[test]
+    fn a_subharmonic_leak_does_not_own_the_louder_labels_harmonics() {
+        let h = harmonic();
+        // A talker at 220 Hz; its leak into a silent neighbour's output reads as 110 Hz, whose
+        // comb passes through every harmonic of 220 Hz (and between them, where nothing is).
+        let mag = spectrum(&voiced(220.0, 1.0));
+        let all = vec![1.0; mag.len()];
+        let p = h.pitch(&mag, &all, &Register::default(), &mut Vec::new());
+        assert!((p.f0 / 220.0 - 1.0).abs() < 0.01, "{}", p.f0);
+        let ghost = Pitch {
+            f0: 110.0,
+            voicing: 1.0,
+            salience: 0.4 * p.salience,
+        };
+        let pitch = [p, ghost];
+        let mut e = [0.0; 2];
+        for harm in [1.0, 3.0, 7.0] {
+            let k = (harm * 220.0 / h.hz_per_bin).round() as usize;
+            h.evidence(&pitch, k, &mut e);
+            assert!(e[0] > 0.8 && e[1] < 0.2, "harmonic {harm}: {e:?}");
+        }
+        // Between the talker's harmonics the subharmonic comb keeps its claim.
+        let k = (330.0 / h.hz_per_bin).round() as usize;
+        h.evidence(&pitch, k, &mut e);
+        assert!(e[0] < 0.01 && e[1] > 0.8, "{e:?}");
+        // Its pitch is its own at the odd teeth only (about 0.6; a same-F0 rule would give it
+        // all, 1), so it weighs less in its register.
+        let mut own = [0.0; 2];
+        h.ownership(&pitch, &mut own);
+        assert!(own[0] > 0.9 && own[1] < 0.7, "{own:?}");
     }
 
     #[test]

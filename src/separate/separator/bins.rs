@@ -416,9 +416,7 @@ impl Separator {
             if u.iter().all(|&x| x <= 0.0) {
                 continue;
             }
-            for ((e, p), o) in w.evidence.iter_mut().zip(&w.pitch).zip(&w.ownership) {
-                *e = o * self.harmonic.membership(p.f0, k);
-            }
+            self.harmonic.evidence(&w.pitch, k, &mut w.evidence);
             self.harmonic.regroup(
                 &mut w.frame_gains[k * n..(k + 1) * n],
                 u,
