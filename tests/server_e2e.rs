@@ -88,6 +88,11 @@ async fn streamed_session_equals_offline_run_fast_and_paced() {
         m.step_latency_ms
     );
     assert!(m.refused.is_empty(), "{:?}", m.refused);
+    // The separation ran on its own thread and drained its queue before the stream closed.
+    let execution = ServerConfig::default().execution;
+    assert!(execution.separation_thread);
+    assert_eq!(m.separation_queue_capacity, execution.separation_queue);
+    assert_eq!(m.separation_queue_depth, 0);
     server.stop().await;
 }
 

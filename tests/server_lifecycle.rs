@@ -234,6 +234,8 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     );
     assert!(text.contains("avsep_sessions{state=\"finished\"} 1"));
     assert!(text.contains("avsep_process_resident_memory_bytes"));
+    assert!(text.contains("avsep_separation_queue_depth 0"), "{text}");
+    assert!(text.contains("avsep_separation_waits_total"), "{text}");
 
     // CORS for the configured origin.
     let raw = raw_request(

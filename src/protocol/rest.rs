@@ -333,6 +333,15 @@ pub struct SessionMetrics {
     pub queue_depth: usize,
     /// Queue capacity.
     pub queue_capacity: usize,
+    /// Steps of separation work waiting for the session's separation thread (which runs at a
+    /// lower priority than the tracker, so it may lag under load without delaying the tracks).
+    pub separation_queue_depth: usize,
+    /// Capacity of the separation queue (`execution.separation_queue`; 0 when the session
+    /// separates on its worker thread).
+    pub separation_queue_capacity: usize,
+    /// Steps whose pipeline waited because the separation queue was full (the input queue,
+    /// then `queue_full`, takes the strain).
+    pub separation_waits: u64,
     /// Connected stream clients.
     pub clients: usize,
 }

@@ -54,6 +54,8 @@ pub struct ServerMetrics {
     sessions: IntGaugeVec,
     clients: IntGauge,
     queue_depth: IntGauge,
+    separation_queue_depth: IntGauge,
+    separation_waits: IntCounter,
     live_tracks: IntGauge,
     resident_bytes: IntGauge,
     cpu_seconds: Gauge,
@@ -69,6 +71,8 @@ pub struct Snapshot {
     pub clients: i64,
     /// Messages queued, summed over sessions.
     pub queue_depth: i64,
+    /// Steps of separation work queued, summed over sessions.
+    pub separation_queue_depth: i64,
     /// Tracks that exist now, summed over sessions.
     pub live_tracks: i64,
 }
@@ -142,6 +146,14 @@ impl ServerMetrics {
                 "avsep_queue_depth",
                 "Inbound messages queued, summed over sessions",
             )?,
+            separation_queue_depth: IntGauge::new(
+                "avsep_separation_queue_depth",
+                "Steps of separation work waiting for their sessions' separation threads, summed over sessions",
+            )?,
+            separation_waits: IntCounter::new(
+                "avsep_separation_waits_total",
+                "Steps whose pipeline waited for a full separation queue",
+            )?,
             live_tracks: IntGauge::new("avsep_live_tracks", "Tracks that exist now")?,
             resident_bytes: IntGauge::new(
                 "avsep_process_resident_memory_bytes",
@@ -171,6 +183,9 @@ impl ServerMetrics {
         m.registry.register(Box::new(m.sessions.clone()))?;
         m.registry.register(Box::new(m.clients.clone()))?;
         m.registry.register(Box::new(m.queue_depth.clone()))?;
+        m.registry
+            .register(Box::new(m.separation_queue_depth.clone()))?;
+        m.registry.register(Box::new(m.separation_waits.clone()))?;
         m.registry.register(Box::new(m.live_tracks.clone()))?;
         m.registry.register(Box::new(m.resident_bytes.clone()))?;
         m.registry.register(Box::new(m.cpu_seconds.clone()))?;
@@ -197,6 +212,7 @@ impl ServerMetrics {
         }
         self.clients.set(snap.clients);
         self.queue_depth.set(snap.queue_depth);
+        self.separation_queue_depth.set(snap.separation_queue_depth);
         self.live_tracks.set(snap.live_tracks);
         self.resident_bytes
             .set(resident_memory_bytes().unwrap_or(0) as i64);
@@ -288,6 +304,11 @@ pub struct SessionCounters {
     audio_samples: AtomicU64,
     /// Messages waiting in the session's queue.
     pub queue_depth: AtomicUsize,
+    /// Steps of separation work waiting for the session's separation thread.
+    pub separation_queued: AtomicUsize,
+    /// Capacity of the separation queue (0 when the session separates on its worker).
+    pub separation_capacity: AtomicUsize,
+    separation_waits: AtomicU64,
     /// Tracks that exist now.
     pub live_tracks: AtomicUsize,
     /// Labels ever reported.
@@ -310,6 +331,9 @@ impl SessionCounters {
             processing_ns: AtomicU64::new(0),
             audio_samples: AtomicU64::new(0),
             queue_depth: AtomicUsize::new(0),
+            separation_queued: AtomicUsize::new(0),
+            separation_capacity: AtomicUsize::new(0),
+            separation_waits: AtomicU64::new(0),
             live_tracks: AtomicUsize::new(0),
             labels_total: AtomicU64::new(0),
         }
@@ -385,6 +409,17 @@ impl SessionCounters {
     /// Refusals by code.
     pub fn refusals(&self) -> BTreeMap<String, u64> {
         self.refused.lock().map(|m| m.clone()).unwrap_or_default()
+    }
+
+    /// Counts a step whose pipeline waited because the separation queue was full.
+    pub fn separation_waited(&self) {
+        self.separation_waits.fetch_add(1, Ordering::Relaxed);
+        self.server.separation_waits.inc();
+    }
+
+    /// Steps whose pipeline waited for a full separation queue.
+    pub fn separation_waits(&self) -> u64 {
+        self.separation_waits.load(Ordering::Relaxed)
     }
 
     /// Output messages skipped by slow clients.

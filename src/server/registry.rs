@@ -244,6 +244,7 @@ impl Registry {
             snap.clients += s.clients() as i64;
             let m = s.metrics();
             snap.queue_depth += m.queue_depth as i64;
+            snap.separation_queue_depth += m.separation_queue_depth as i64;
             snap.live_tracks += m.live_tracks as i64;
         }
         snap

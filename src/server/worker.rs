@@ -78,14 +78,29 @@ fn start_separation<E: Engine>(
 ) -> Option<JoinHandle<()>> {
     let (tx, rx) = sync_channel::<SeparationWork>(execution.separation_queue);
     // A full queue blocks the worker (backpressure); a failed separation thread drops the work.
+    // The count goes up before the send, so the thread never takes it below zero.
     let id = session.id().to_string();
-    let driver = engine.detach_separation(Box::new(move |work| match tx.try_send(work) {
-        Ok(()) | Err(TrySendError::Disconnected(_)) => {}
-        Err(TrySendError::Full(work)) => {
-            tracing::debug!(session = %id, "separation queue full: the pipeline waits for it");
-            let _ = tx.send(work);
+    let sender = session.clone();
+    let driver = engine.detach_separation(Box::new(move |work| {
+        let c = &sender.counters;
+        c.separation_queued.fetch_add(1, Ordering::AcqRel);
+        let sent = match tx.try_send(work) {
+            Ok(()) => true,
+            Err(TrySendError::Disconnected(_)) => false,
+            Err(TrySendError::Full(work)) => {
+                tracing::debug!(session = %id, "separation queue full: the pipeline waits for it");
+                c.separation_waited();
+                tx.send(work).is_ok()
+            }
+        };
+        if !sent {
+            c.separation_queued.fetch_sub(1, Ordering::AcqRel);
         }
     }))?;
+    session
+        .counters
+        .separation_capacity
+        .store(execution.separation_queue, Ordering::Relaxed);
     let for_thread = session.clone();
     let nice = execution.separation_nice;
     match std::thread::Builder::new()
@@ -110,6 +125,10 @@ fn separate(
     lower_priority(nice);
     let mut out = Publisher::new(&session, Instant::now());
     while let Ok(work) = rx.recv() {
+        session
+            .counters
+            .separation_queued
+            .fetch_sub(1, Ordering::AcqRel);
         let started = thread_cpu_time();
         let applied = catch_unwind(AssertUnwindSafe(|| {
             driver.apply(work, &mut |e| out.emit(e));

@@ -101,6 +101,9 @@ impl Session {
             labels_total: c.labels_total.load(Ordering::Relaxed),
             queue_depth: c.queue_depth.load(Ordering::Relaxed),
             queue_capacity: self.limits.queue_depth,
+            separation_queue_depth: c.separation_queued.load(Ordering::Relaxed),
+            separation_queue_capacity: c.separation_capacity.load(Ordering::Relaxed),
+            separation_waits: c.separation_waits(),
             clients: self.clients(),
         }
     }
