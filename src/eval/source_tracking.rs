@@ -22,6 +22,46 @@ pub struct LabelShare {
     pub share: f64,
 }
 
+/// A track counts as speaking at a step when its `speaking` is at least this.
+pub const SPEAKING_THRESHOLD: f64 = 0.5;
+
+/// How well the `speaking` of the track matched to a source (3-D) follows the source's own
+/// talk spurts, over the steps at which it is matched.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct SpeakingScore {
+    /// Matched steps at which the source talks.
+    pub talking_steps: usize,
+    /// ... of which its track reads speaking (at least [`SPEAKING_THRESHOLD`]).
+    pub detected: usize,
+    /// Matched steps at which the source is silent but its track reads speaking.
+    pub false_alarms: usize,
+    /// Matched steps at which the source is silent.
+    pub silent_steps: usize,
+}
+
+impl SpeakingScore {
+    /// detected / (detected + false alarms); None without any step read as speaking.
+    pub fn precision(&self) -> Option<f64> {
+        let n = self.detected + self.false_alarms;
+        (n > 0).then(|| self.detected as f64 / n as f64)
+    }
+
+    /// detected / talking steps; None when the source never talks while matched.
+    pub fn recall(&self) -> Option<f64> {
+        (self.talking_steps > 0).then(|| self.detected as f64 / self.talking_steps as f64)
+    }
+
+    /// Sum of two scores.
+    pub fn add(&self, o: &Self) -> Self {
+        Self {
+            talking_steps: self.talking_steps + o.talking_steps,
+            detected: self.detected + o.detected,
+            false_alarms: self.false_alarms + o.false_alarms,
+            silent_steps: self.silent_steps + o.silent_steps,
+        }
+    }
+}
+
 /// Tracking of one true source.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SourceTracking {
@@ -46,6 +86,8 @@ pub struct SourceTracking {
     pub direction_active_labels: Vec<LabelShare>,
     /// Labels carrying at least `continuity_share` of its active steps (3-D); the target is 1.
     pub stream_labels: usize,
+    /// Whether its matched track's `speaking` follows its talk spurts.
+    pub speaking: SpeakingScore,
 }
 
 /// The label matched to source `i` at each step, if any.
@@ -124,6 +166,20 @@ pub(crate) fn source_tracking(ctx: &SourceContext, s: &TruthSource, i: usize) ->
         .map(|(k, &t)| sel[k] && s.is_active(t))
         .collect();
     let active_labels = active_shares(&grid.labels, &pos_match, &active);
+    let mut speaking = SpeakingScore::default();
+    for (k, m) in pos_match.iter().enumerate() {
+        let Some(j) = *m else { continue };
+        let says = grid.speaking[k]
+            .get(j)
+            .is_some_and(|&v| v >= SPEAKING_THRESHOLD);
+        if s.is_active(grid.times[k]) {
+            speaking.talking_steps += 1;
+            speaking.detected += usize::from(says);
+        } else {
+            speaking.silent_steps += 1;
+            speaking.false_alarms += usize::from(says);
+        }
+    }
     let mut distinct: Vec<usize> = pos_match.iter().flatten().copied().collect();
     distinct.sort_unstable();
     distinct.dedup();
@@ -141,5 +197,6 @@ pub(crate) fn source_tracking(ctx: &SourceContext, s: &TruthSource, i: usize) ->
             .count(),
         active_labels,
         direction_active_labels: active_shares(&grid.labels, &dir_match, &active),
+        speaking,
     }
 }

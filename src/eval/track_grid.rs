@@ -17,6 +17,8 @@ pub(crate) struct Grid {
     pub labels: Vec<Label>,
     /// Per step: (label index, position).
     pub est: Vec<Vec<(usize, Vec3)>>,
+    /// Per step and label index: the track's `speaking` (NaN when the label is absent).
+    pub speaking: Vec<Vec<f64>>,
     /// Per source, per step: position when present.
     pub truth: Vec<Vec<Option<Vec3>>>,
 }
@@ -50,6 +52,17 @@ impl Grid {
                     .collect()
             })
             .collect();
+        let speaking = lines
+            .iter()
+            .map(|l| {
+                let mut v = vec![f64::NAN; index.len()];
+                for tr in l.tracks.iter().rev() {
+                    // Reversed, so a label listed twice keeps its first value, as in `est`.
+                    v[index[&tr.label]] = tr.speaking;
+                }
+                v
+            })
+            .collect();
         let times: Vec<f64> = lines.iter().map(|l| l.t).collect();
         let truth = sources
             .iter()
@@ -59,6 +72,7 @@ impl Grid {
             times,
             labels: index.into_keys().collect(),
             est,
+            speaking,
             truth,
         }
     }

@@ -21,7 +21,7 @@ use super::source_tracking::{SourceContext, source_tracking};
 use super::stats::Summary;
 use super::track_grid::Grid;
 
-pub use super::source_tracking::{LabelShare, SourceTracking};
+pub use super::source_tracking::{LabelShare, SourceTracking, SpeakingScore};
 
 /// Tracking scores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -70,6 +70,9 @@ pub struct TrackingFigures {
     pub direction: MotFigures,
     /// Azimuth error (deg) of the pairs matched in azimuth.
     pub direction_error_deg: Summary,
+    /// Whether the matched tracks' `speaking` follows the sources' talk spurts, summed over
+    /// the sources.
+    pub speaking: SpeakingScore,
     /// Per true source.
     pub sources: Vec<SourceTracking>,
 }
@@ -221,11 +224,14 @@ fn figures(
         dir: &dir,
         cfg,
     };
-    let per_source = sources
+    let per_source: Vec<SourceTracking> = sources
         .iter()
         .enumerate()
         .map(|(i, s)| source_tracking(&ctx, s, i))
         .collect();
+    let speaking = per_source
+        .iter()
+        .fold(SpeakingScore::default(), |a, s| a.add(&s.speaking));
     let figures = TrackingFigures {
         truth_count: pos.truth_count,
         track_count: pos.est_count,
@@ -236,6 +242,7 @@ fn figures(
         pixel_error_px,
         direction: MotFigures::new(&dir, &dir_id, az_gate, deg),
         direction_error_deg: Summary::of(&dir_errors),
+        speaking,
         sources: per_source,
     };
     (figures, ospa2)
@@ -382,6 +389,33 @@ mod tests {
         assert!((r.audible.ospa.total - 0.2).abs() < 1e-12);
         assert_eq!(r.audible.position.misses, 0);
         assert!(all.sources[1].onset_s.is_none());
+    }
+
+    #[test]
+    fn speaking_is_scored_against_the_matched_sources_talk_spurts() {
+        let p = Vec3::new(2.0, 0.0, 1.0);
+        // s1 talks during [1, 3); its track reads speaking from t = 1.5 to the end.
+        let sources = [source("s1", p, vec![(1.0, 3.0)])];
+        let lines: Vec<TracksLine> = (0..10)
+            .map(|k| {
+                let t = k as f64 * 0.5;
+                let mut tr = track(Label::new(0, 0), p);
+                tr.speaking = if t >= 1.5 { 0.9 } else { 0.1 };
+                TracksLine {
+                    t,
+                    tracks: vec![tr],
+                }
+            })
+            .collect();
+        let r = score_tracks(&layout(), &sources, &lines, &EvalConfig::default());
+        let sp = r.all.sources[0].speaking;
+        // Talking at t = 1, 1.5, 2, 2.5 (read at 1.5-2.5); silent at 0, 0.5 and 3-4.5, of
+        // which 3-4.5 read speaking.
+        assert_eq!((sp.talking_steps, sp.detected), (4, 3));
+        assert_eq!((sp.silent_steps, sp.false_alarms), (6, 4));
+        assert_eq!(sp.recall(), Some(0.75));
+        assert_eq!(sp.precision(), Some(3.0 / 7.0));
+        assert_eq!(r.all.speaking, sp);
     }
 
     #[test]
