@@ -142,16 +142,16 @@ fn figure_rows(f: &TrackingFigures) -> Vec<(String, String)> {
             .map(|(k, v)| (format!("dir {k}"), v)),
     );
     rows.push((
+        "dir err mean/med (deg)".into(),
+        mean_median(&f.direction_error_deg, 2),
+    ));
+    rows.push((
         "speaking precision / recall".into(),
         format!(
             "{} / {}",
             num(f.speaking.precision(), 2),
             num(f.speaking.recall(), 2)
         ),
-    ));
-    rows.push((
-        "dir err mean/med (deg)".into(),
-        mean_median(&f.direction_error_deg, 2),
     ));
     rows
 }

@@ -79,7 +79,6 @@ fn start_separation<E: Engine>(
     let (tx, rx) = sync_channel::<SeparationWork>(execution.separation_queue);
     // A full queue blocks the worker (backpressure); a failed separation thread drops the work.
     // The count goes up before the send, so the thread never takes it below zero.
-    let id = session.id().to_string();
     let sender = session.clone();
     let driver = engine.detach_separation(Box::new(move |work| {
         let c = &sender.counters;
@@ -88,7 +87,7 @@ fn start_separation<E: Engine>(
             Ok(()) => true,
             Err(TrySendError::Disconnected(_)) => false,
             Err(TrySendError::Full(work)) => {
-                tracing::debug!(session = %id, "separation queue full: the pipeline waits for it");
+                tracing::debug!(session = %sender.id(), "separation queue full: the pipeline waits for it");
                 c.separation_waited();
                 tx.send(work).is_ok()
             }

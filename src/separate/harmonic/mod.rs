@@ -270,12 +270,12 @@ impl Harmonic {
         let kf = k as f64;
         let mut top = 0.0f64;
         for (e, p) in out.iter_mut().zip(pitch) {
-            *e = self.membership_at(p.f0, kf);
+            *e = self.membership(p.f0, kf);
             top = top.max(p.salience * *e);
         }
         for (e, p) in out.iter_mut().zip(pitch) {
-            *e = if *e > 0.0 && top > 0.0 {
-                p.voicing * *e * power(p.salience * *e / top, self.ownership_exponent)
+            *e = if *e > 0.0 {
+                p.voicing * *e * self.share_against(p.salience * *e, top)
             } else {
                 0.0
             };
@@ -284,11 +284,17 @@ impl Harmonic {
 
     /// `p`'s share of (fractional) bin `kf` among the combs of `pitch` (which includes `p`).
     fn share(&self, pitch: &[Pitch], p: &Pitch, kf: f64) -> f64 {
-        let own = p.salience * self.membership_at(p.f0, kf);
+        let own = p.salience * self.membership(p.f0, kf);
         let top = pitch
             .iter()
-            .map(|q| q.salience * self.membership_at(q.f0, kf))
+            .map(|q| q.salience * self.membership(q.f0, kf))
             .fold(own, f64::max);
+        self.share_against(own, top)
+    }
+
+    /// The share of a comb of strength `own` in a bin whose strongest comb has strength `top`
+    /// (at least `own`).
+    fn share_against(&self, own: f64, top: f64) -> f64 {
         if top > 0.0 {
             power(own / top, self.ownership_exponent)
         } else {
@@ -296,15 +302,10 @@ impl Harmonic {
         }
     }
 
-    /// How much of the comb of `f0` passes through bin `k`: the analysis window's (periodic
-    /// Hann) power response at the distance to the nearest harmonic, 1 on a harmonic, 0 two bins
-    /// or more away.
-    pub fn membership(&self, f0: f64, k: usize) -> f64 {
-        self.membership_at(f0, k as f64)
-    }
-
-    /// [`Harmonic::membership`] at a fractional bin.
-    fn membership_at(&self, f0: f64, kf: f64) -> f64 {
+    /// How much of the comb of `f0` passes through (fractional) bin `kf`: the analysis
+    /// window's (periodic Hann) power response at the distance to the nearest harmonic, 1 on a
+    /// harmonic, 0 two bins or more away.
+    pub fn membership(&self, f0: f64, kf: f64) -> f64 {
         if f0 <= 0.0 {
             return 0.0;
         }
@@ -650,15 +651,15 @@ mod tests {
         let h = harmonic();
         let f0 = 120.0;
         let k = (2.0 * f0 / h.hz_per_bin).round() as usize;
-        assert!(h.membership(f0, k) > 0.8);
-        assert_eq!(h.membership(f0, k + 3), 0.0);
+        assert!(h.membership(f0, k as f64) > 0.8);
+        assert_eq!(h.membership(f0, (k + 3) as f64), 0.0);
         // Labels 0 and 1 are collinear here, label 2 is resolved; the spatial split is even.
         let mut g = vec![0.45, 0.45, 0.1];
         let unresolved = [1.0, 1.0, 0.0];
         h.regroup(
             &mut g,
             &unresolved,
-            &[h.membership(f0, k), 0.0, 1.0],
+            &[h.membership(f0, k as f64), 0.0, 1.0],
             0.05,
             &mut Vec::new(),
         );
