@@ -65,6 +65,7 @@ fn vo_inputs(seed: u64) -> Vec<StepInput> {
                     sensor: 0,
                     measurements: z,
                     activity: None,
+                    sounding: Vec::new(),
                 }],
             }
         })
@@ -146,11 +147,13 @@ fn av_input(k: u64, rng: &mut ChaCha8Rng, room: &Aabb, sources: &[Vec3; 3]) -> S
                 sensor: 0,
                 measurements: pixels,
                 activity: None,
+                sounding: Vec::new(),
             },
             Scan {
                 sensor: 1,
                 measurements: audio,
                 activity: Some(1.0),
+                sounding: Vec::new(),
             },
         ],
     }

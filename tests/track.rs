@@ -156,6 +156,7 @@ fn vo_run(seed: u64) -> Vec<f64> {
                     sensor: 0,
                     measurements: meas[k].clone(),
                     activity: None,
+                    sounding: Vec::new(),
                 }],
             });
             let pos: Vec<Vec3> = est.iter().map(|e| e.position).collect();
@@ -288,6 +289,7 @@ impl RoomSim {
             sensor: CAM,
             measurements: z,
             activity: None,
+            sounding: Vec::new(),
         }
     }
 
@@ -306,6 +308,7 @@ impl RoomSim {
             sensor: POS,
             measurements: z,
             activity: Some(activity),
+            sounding: Vec::new(),
         }
     }
 
@@ -337,6 +340,7 @@ impl RoomSim {
             sensor,
             measurements: z,
             activity: Some(activity),
+            sounding: Vec::new(),
         }
     }
 }
@@ -424,6 +428,42 @@ fn a_label_survives_a_two_second_audio_only_pause() {
 }
 
 #[test]
+fn candidates_that_no_longer_sound_hold_the_track_but_not_its_speaking() {
+    // A talker stops at step 20, but the localiser's smoothed maps keep reporting him, marked
+    // as no longer sounding: the track stays where he is, and `speaking` falls.
+    let source = Vec3::new(3.0, 2.5, 1.5);
+    let mut tracker = room_tracker(&TrackerConfig::default(), 7);
+    let mut sim = RoomSim::new(8);
+    for k in 0..40u64 {
+        let mut scan = sim.position_scan(&[source], 1.0, 2);
+        if k >= 20 {
+            scan.sounding = scan
+                .measurements
+                .iter()
+                .map(|m| match m {
+                    Measurement::Position(p) => (p - source).norm() > 0.5,
+                    _ => true,
+                })
+                .collect();
+        }
+        let out = tracker.step(&StepInput {
+            k,
+            t: k as f64 * DT,
+            scans: vec![scan],
+        });
+        if k == 19 || k >= 26 {
+            let e = nearest(&out, &source).unwrap_or_else(|| panic!("step {k}: no track"));
+            assert!((e.position - source).norm() < 0.3, "step {k}: {e:?}");
+            if k == 19 {
+                assert!(e.speaking > 0.5, "step {k}: speaking {}", e.speaking);
+            } else {
+                assert!(e.speaking < 0.1, "step {k}: speaking {}", e.speaking);
+            }
+        }
+    }
+}
+
+#[test]
 fn two_crossing_targets_keep_their_labels() {
     // Two speakers walk past each other at 0.8 m/s; camera + audio candidates.
     let mut tracker = room_tracker(&TrackerConfig::default(), 5);
@@ -500,6 +540,7 @@ fn silent_and_unseen(frames: bool, silent: u64, seed: u64) -> (Vec<f64>, Vec<Lab
                 sensor: CAM,
                 measurements: vec![],
                 activity: None,
+                sounding: Vec::new(),
             });
         }
         let out = tracker.step(&StepInput {
@@ -608,6 +649,7 @@ fn a_camera_detection_and_an_audio_direction_give_a_birth_at_their_intersection(
                 sensor: CAM,
                 measurements: vec![Measurement::Pixel(px)],
                 activity: None,
+                sounding: Vec::new(),
             },
             Scan {
                 sensor: DIR_A,
@@ -616,6 +658,7 @@ fn a_camera_detection_and_an_audio_direction_give_a_birth_at_their_intersection(
                     elevation: None,
                 }],
                 activity: Some(1.0),
+                sounding: Vec::new(),
             },
         ]
     };
@@ -666,6 +709,7 @@ fn bad_input_is_dropped_and_counted_and_never_yields_nan() {
                 sensor: 99,
                 measurements: vec![],
                 activity: None,
+                sounding: Vec::new(),
             });
             scans.push(Scan {
                 sensor: DIR_A,
@@ -680,6 +724,7 @@ fn bad_input_is_dropped_and_counted_and_never_yields_nan() {
                     },
                 ],
                 activity: Some(f64::NAN),
+                sounding: Vec::new(),
             });
             if k % 7 == 3 {
                 scans[1]
@@ -827,6 +872,7 @@ fn azimuth_only_tracks_two_speakers_through_their_pauses() {
                 sensor: dir,
                 measurements: z,
                 activity: Some(activity),
+                sounding: Vec::new(),
             }],
         });
         for (i, s) in sources.iter().enumerate() {
@@ -910,6 +956,7 @@ fn cone_angles_and_camera_rays_localise_two_speakers() {
                     sensor: 1,
                     measurements: cones,
                     activity: Some(1.0),
+                    sounding: Vec::new(),
                 },
             ],
         });
@@ -1199,11 +1246,13 @@ fn paper_room_run(cfg: &TrackerConfig) -> (f64, f64) {
                     sensor: cam_idx,
                     measurements: faces,
                     activity: None,
+                    sounding: Vec::new(),
                 },
                 Scan {
                     sensor: cone_idx,
                     measurements: cones,
                     activity: Some(1.0),
+                    sounding: Vec::new(),
                 },
             ],
         });

@@ -214,6 +214,17 @@ pub struct PeakConfig {
     /// Passes of re-estimation once the candidates are found: each is re-maximised with all the
     /// others masked, so that a later-found talker's lobe no longer pulls it (0: none).
     pub joint_passes: usize,
+    /// A candidate is `sounding` (evidence that its source speaks now, which the tracker's
+    /// `speaking` counts) when it stands this many null standard deviations above zero in the
+    /// frame's own, unsmoothed SRP (its `fresh`). The smoothing keeps a talker who stopped in
+    /// the maps for a second or more, and the tracker read that memory as speech. Candidates
+    /// matched to the truth, paper-linear6 seeds 1-12: a talking source's median 19, a silent
+    /// one's 0.4. 5 against every candidate sounding, full pipeline, paper-linear6 seeds 1-12 /
+    /// uca8 3 talkers seeds 1-6 / real speech seeds 1-6: silent steps read as speaking 38 / 58
+    /// / 47 % -> 8 / 10 / 7 %, precision of `speaking` 0.75 / 0.77 / 0.73 -> 0.92 / 0.94 /
+    /// 0.94, recall 0.68 / 0.82 / 0.81 -> 0.52 / 0.63 / 0.66 (3: 0.89 / 0.90 / 0.89 and 0.56 /
+    /// 0.69 / 0.70). The tracks themselves do not change.
+    pub sounding_sigmas: f64,
 }
 
 impl Default for PeakConfig {
@@ -228,6 +239,7 @@ impl Default for PeakConfig {
             subband_bins: 8,
             power_iterations: 8,
             joint_passes: 1,
+            sounding_sigmas: 5.0,
         }
     }
 }
@@ -444,6 +456,11 @@ impl LocalizerConfig {
             p.joint_passes <= 10,
             "peaks.joint_passes",
             "must be in 0..=10",
+        )?;
+        ConfigError::check(
+            p.sounding_sigmas.is_finite() && (0.0..=100.0).contains(&p.sounding_sigmas),
+            "peaks.sounding_sigmas",
+            "must be in [0, 100]",
         )
     }
 
@@ -552,6 +569,10 @@ mod tests {
             "peaks.power_iterations"
         );
         assert_eq!(bad(&|c| c.peaks.joint_passes = 11), "peaks.joint_passes");
+        assert_eq!(
+            bad(&|c| c.peaks.sounding_sigmas = f64::NAN),
+            "peaks.sounding_sigmas"
+        );
         let err =
             serde_json::from_str::<LocalizerConfig>(r#"{"positions": {"j0": 5}}"#).unwrap_err();
         assert!(err.to_string().contains("j0"), "{err}");

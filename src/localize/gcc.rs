@@ -428,6 +428,49 @@ impl GccBank {
         table[2 * p.half + 1] = table[2 * p.half];
     }
 
+    /// This frame's own normalised SRP at a source whose wave reaches the microphones at
+    /// `delays` (seconds), without the smoothing's memory, with sub-band `b` weighted by
+    /// `gains[b]` as in [`GccBank::tabulate_subbands`]; and the standard deviation the same
+    /// SRP would have for incoherent signals. The smoothed maps find a source from the evidence
+    /// of several frames; this tells whether it is still sounding now.
+    pub fn fresh_srp(&self, delays: &[f64], gains: Option<&[f64]>) -> (f64, f64) {
+        let nb = self.band.1 + 1 - self.band.0;
+        let width = self.subbands.width.max(1);
+        let bin =
+            2.0 * PI * self.steps_per_second / (self.interpolation as f64 * self.frame as f64);
+        let (mut total, mut var) = (0.0, 0.0);
+        for p in &self.pairs {
+            let (wa, wb) = (
+                &self.white[p.a * nb..(p.a + 1) * nb],
+                &self.white[p.b * nb..(p.b + 1) * nb],
+            );
+            let (ma, mb) = (
+                &self.mags[p.a * nb..(p.a + 1) * nb],
+                &self.mags[p.b * nb..(p.b + 1) * nb],
+            );
+            let tau =
+                delays.get(p.a).copied().unwrap_or(0.0) - delays.get(p.b).copied().unwrap_or(0.0);
+            // e^{j w_k tau} by recurrence over the band's bins.
+            let mut rot = Complex::from_polar(1.0, bin * self.band.0 as f64 * tau);
+            let step = Complex::from_polar(1.0, bin * tau);
+            let (mut num, mut t1, mut t2) = (0.0, 0.0, 0.0);
+            for k in 0..nb {
+                let g = gains.map_or(1.0, |g| g.get(k / width).copied().unwrap_or(0.0));
+                let m = g * ma[k] * mb[k];
+                num += g * (wa[k] * wb[k].conj() * rot).re;
+                t1 += m;
+                t2 += m * m;
+                rot *= step;
+            }
+            if t1 > 0.0 {
+                total += num / t1;
+                var += t2 / (2.0 * t1 * t1);
+            }
+        }
+        let np = self.pairs.len().max(1) as f64;
+        (total / np, var.sqrt() / np)
+    }
+
     /// Forgets the past frames' cross-spectra (after silence, or when the input jumps).
     pub fn forget(&mut self) {
         self.fresh = true;

@@ -121,6 +121,12 @@ impl SubbandMask {
 
     /// Recomputes the bank's tables with every source added so far removed, except `keep`.
     pub fn apply(&mut self, bank: &mut GccBank, keep: Option<usize>) {
+        self.weights(keep);
+        bank.tabulate_subbands(Some(&self.mask));
+    }
+
+    /// The per-sub-band weights with every source added so far removed, except `keep`.
+    pub fn weights(&mut self, keep: Option<usize>) -> &[f64] {
         self.mask.fill(1.0);
         for (i, dom) in self.dominance.iter().enumerate() {
             if Some(i) == keep {
@@ -135,7 +141,7 @@ impl SubbandMask {
                 };
             }
         }
-        bank.tabulate_subbands(Some(&self.mask));
+        &self.mask
     }
 
     /// Steering vector of `delays` at the first sub-band's centre in `steer`, and its change

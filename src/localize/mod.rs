@@ -52,6 +52,13 @@ pub struct DirectionCandidate {
     pub elevation: f64,
     /// Normalised SRP (mean GCC-PHAT per pair, in [-1, 1]) where the candidate was found.
     pub power: f64,
+    /// This frame's own SRP at the candidate (without the smoothing's memory, the other
+    /// candidates removed) in standard deviations of the SRP of incoherent signals: high while
+    /// the source sounds, near zero once it has stopped and only the memory still holds it.
+    pub fresh: f64,
+    /// Whether `fresh` reaches the configured `peaks.sounding_sigmas`: the candidate is evidence
+    /// that its source speaks now, not only the maps' memory of it.
+    pub sounding: bool,
 }
 
 /// A 3-D position candidate (world frame).
@@ -61,6 +68,13 @@ pub struct PositionCandidate {
     pub position: Vec3,
     /// Normalised SRP (mean GCC-PHAT per pair, in [-1, 1]) at the position.
     pub power: f64,
+    /// This frame's own SRP at the candidate (without the smoothing's memory, the other
+    /// candidates removed) in standard deviations of the SRP of incoherent signals: high while
+    /// the source sounds, near zero once it has stopped and only the memory still holds it.
+    pub fresh: f64,
+    /// Whether `fresh` reaches the configured `peaks.sounding_sigmas`: the candidate is evidence
+    /// that its source speaks now, not only the maps' memory of it.
+    pub sounding: bool,
 }
 
 /// What one array saw in one localisation frame.
@@ -410,12 +424,16 @@ fn find_directions(
             }
         }
     }
-    for (d, &p) in found.iter().zip(&state.powers) {
+    for (i, (d, &p)) in found.iter().zip(&state.powers).enumerate() {
+        search.delays(d, &mut state.delays);
+        let fresh = fresh_sigmas(bank, &mut state.mask, &state.delays, i, found.len());
         obs.doas.push(DirectionCandidate {
             direction: *d,
             azimuth: azimuth_of(d),
             elevation: elevation_of(d),
             power: p,
+            fresh,
+            sounding: fresh >= cfg.peaks.sounding_sigmas,
         });
     }
     bank.restore();
@@ -451,10 +469,12 @@ fn find_positions(
         obs.points.push(PositionCandidate {
             position: x,
             power: p,
+            fresh: 0.0,
+            sounding: false,
         });
+        searches.positions.delays(&x, sps, &mut state.delays);
+        state.mask.add(&state.delays);
         if found.len() < cfg.max_candidates {
-            searches.positions.delays(&x, sps, &mut state.delays);
-            state.mask.add(&state.delays);
             state.mask.apply(bank, None);
             accept.rescale(
                 &cfg.peaks,
@@ -463,5 +483,24 @@ fn find_positions(
             );
         }
     }
+    for (i, c) in obs.points.iter_mut().enumerate() {
+        searches
+            .positions
+            .delays(&c.position, sps, &mut state.delays);
+        c.fresh = fresh_sigmas(bank, &mut state.mask, &state.delays, i, found.len());
+        c.sounding = c.fresh >= cfg.peaks.sounding_sigmas;
+    }
     bank.restore();
+}
+
+/// [`GccBank::fresh_srp`] of candidate `i` of `n` (the others removed), in null standard
+/// deviations.
+fn fresh_sigmas(bank: &GccBank, mask: &mut SubbandMask, delays: &[f64], i: usize, n: usize) -> f64 {
+    let gains = (n > 1).then(|| mask.weights(Some(i)));
+    let (srp, std) = bank.fresh_srp(delays, gains);
+    if std > 0.0 && srp.is_finite() {
+        srp / std
+    } else {
+        0.0
+    }
 }

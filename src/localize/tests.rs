@@ -587,3 +587,74 @@ fn planar_array_searches_the_half_space_facing_the_region() {
         assert!(angle_between(&o.doas[0].direction, &(src - ceiling.centroid())) < 2.0);
     }
 }
+
+#[test]
+fn a_talker_who_stops_is_no_longer_sounding_though_the_smoothing_remembers_him() {
+    // Two talkers for 1 s, then only the second for 1 s. The smoothed maps keep the first in
+    // view for a while after he stops (decay 0.9 per frame); his candidates are then no longer
+    // sounding, while the second's are throughout.
+    let layout = uca_layout();
+    let centre = layout.arrays[0].centroid();
+    let (p1, p2) = (
+        centre + direction_from_angles(rad(30.0), rad(15.0)) * 1.8,
+        centre + direction_from_angles(rad(-90.0), rad(20.0)) * 1.8,
+    );
+    let n = 16 * 2048;
+    let mut s1 = synth::white(n, 41);
+    s1[n / 2..].iter_mut().for_each(|v| *v = 0.0);
+    let s2 = synth::white(n, 42);
+    let x = synth::render(
+        &layout.arrays[0].mics,
+        &[(p1, &s1), (p2, &s2)],
+        FS,
+        C,
+        None,
+        0.01,
+        9,
+    );
+    let cfg = LocalizerConfig {
+        search: SearchMode::Directions,
+        ..LocalizerConfig::default()
+    };
+    let mut loc = Localizer::new(&layout, &cfg, 1).unwrap();
+    let at = |obs: &ArrayObservation, p: &Vec3| {
+        let az = azimuth_of(&(p - centre));
+        obs.doas
+            .iter()
+            .find(|d| angle_diff(d.azimuth, az).abs() < rad(3.0))
+            .cloned()
+    };
+    let mut remembered = 0;
+    for (k, o) in run(&mut loc, &x).iter().enumerate() {
+        let second =
+            at(o, &p2).unwrap_or_else(|| panic!("frame {k}: the second talker is missing"));
+        assert!(
+            second.sounding,
+            "frame {k}: the second talker, fresh {}",
+            second.fresh
+        );
+        let first = at(o, &p1);
+        if k < 7 {
+            let first = first.unwrap_or_else(|| panic!("frame {k}: the first talker is missing"));
+            assert!(
+                first.sounding && first.fresh > 10.0,
+                "frame {k}: fresh {}",
+                first.fresh
+            );
+        } else if k >= 8
+            && let Some(first) = first
+        {
+            // Frames that start after he stopped.
+            remembered += 1;
+            assert!(
+                !first.sounding,
+                "frame {k}: he stopped, fresh {}",
+                first.fresh
+            );
+        }
+    }
+    assert!(
+        remembered >= 2,
+        "the smoothing should remember him: {remembered} frames"
+    );
+}

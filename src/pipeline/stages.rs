@@ -211,13 +211,14 @@ impl SensorRoutes {
             {
                 continue;
             }
-            let (sensor, measurements) = if self.localized_positions[a] {
+            let (sensor, measurements, sounding) = if self.localized_positions[a] {
                 (
                     self.positions[a],
                     obs.points
                         .iter()
                         .map(|p| Measurement::Position(p.position))
                         .collect(),
+                    obs.points.iter().map(|p| p.sounding).collect(),
                 )
             } else {
                 let m = obs
@@ -228,13 +229,18 @@ impl SensorRoutes {
                         elevation: Some(d.elevation),
                     })
                     .collect();
-                (self.directions[a], m)
+                (
+                    self.directions[a],
+                    m,
+                    obs.doas.iter().map(|d| d.sounding).collect(),
+                )
             };
             if let Some(sensor) = sensor {
                 scans.push(Scan {
                     sensor,
                     measurements,
                     activity: Some(obs.activity),
+                    sounding,
                 });
             }
         }
@@ -266,6 +272,7 @@ impl SensorRoutes {
                     sensor,
                     measurements,
                     activity: f.activity,
+                    sounding: Vec::new(),
                 });
             }
             if !f.points.is_empty()
@@ -276,6 +283,7 @@ impl SensorRoutes {
                     sensor,
                     measurements,
                     activity: f.activity,
+                    sounding: Vec::new(),
                 });
             }
         }
@@ -298,6 +306,7 @@ impl SensorRoutes {
                     sensor,
                     measurements,
                     activity: None,
+                    sounding: Vec::new(),
                 });
             }
         }

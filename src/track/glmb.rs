@@ -370,6 +370,7 @@ mod tests {
                         elevation: None,
                     }],
                     activity: Some(0.9),
+                    sounding: Vec::new(),
                 }],
             })
         };

@@ -138,7 +138,7 @@ impl<const N: usize> GmphdTracker<N> {
                     mean: gain.mean(&c.g.mean, &nu),
                     cov: gain.cov,
                 };
-                if sensor.audio {
+                if sensor.audio && scan.sounding.get(j).copied().unwrap_or(true) {
                     d.audio = 1.0;
                 }
                 detections[j].push(d);

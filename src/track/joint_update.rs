@@ -28,7 +28,8 @@ use crate::label::Label;
 pub(crate) struct Entry<const N: usize> {
     pub label: Label,
     pub density: Gaussian<N>,
-    /// Whether the last update associated an audio measurement.
+    /// Whether the last update associated an audio measurement that sounds now (see
+    /// [`super::Scan::sounding`]); `speaking` is its probability.
     pub audio: bool,
     /// Probability of "on" of each detectability mode (voice, faces; see `modes`).
     pub modes: Vec<f64>,
@@ -372,7 +373,8 @@ impl<const N: usize> JointUpdate<N> {
                 term += if j == 0 { log_miss } else { log_hit };
             }
             if j != 0 {
-                audio |= sensor.audio;
+                let sounding = m.scans[s].sounding.get(j as usize - 1).copied();
+                audio |= sensor.audio && sounding.unwrap_or(true);
                 assoc.push((s as u16, j as u16 - 1));
             }
         }

@@ -131,6 +131,10 @@ pub struct Scan {
     pub measurements: Vec<Measurement>,
     /// Voice activity in [0, 1] for audio sensors (scales their detection probability).
     pub activity: Option<f64>,
+    /// Per measurement of an audio sensor: whether it is evidence that its source is speaking
+    /// now (a localiser candidate found in the smoothed maps may be only the memory of a talker
+    /// who stopped). Empty: every measurement is. Only `speaking` reads it.
+    pub sounding: Vec<bool>,
 }
 
 /// One reported track.
@@ -146,7 +150,8 @@ pub struct TrackEstimate {
     pub covariance: Matrix6<f64>,
     /// Existence probability: the weight of the hypotheses holding the label.
     pub existence: f64,
-    /// Probability that the track produced an audio measurement, exponentially smoothed.
+    /// Probability that the track produced an audio measurement that sounds now (see
+    /// [`Scan::sounding`]), exponentially smoothed.
     pub speaking: f64,
 }
 

@@ -17,6 +17,8 @@ pub(crate) struct SensorScan {
     pub z: Vec<Vector3<f64>>,
     /// Voice activity, if reported.
     pub activity: Option<f64>,
+    /// Per measurement in `z`: whether it is evidence of speech now (see [`super::Scan`]).
+    pub sounding: Vec<bool>,
 }
 
 /// Validates the scans of a step: drops (and counts) non-finite or mismatched measurements and
@@ -39,6 +41,7 @@ pub(crate) fn collect<const N: usize>(
                     sensor: scan.sensor,
                     z: Vec::new(),
                     activity: None,
+                    sounding: Vec::new(),
                 });
                 out.len() - 1
             }
@@ -48,9 +51,14 @@ pub(crate) fn collect<const N: usize>(
             let a = a.clamp(0.0, 1.0);
             entry.activity = Some(entry.activity.map_or(a, |b: f64| b.max(a)));
         }
-        for m in &scan.measurements {
+        for (i, m) in scan.measurements.iter().enumerate() {
             match sensor.convert(m) {
-                Ok(z) if entry.z.len() < MAX_MEASUREMENTS => entry.z.push(z),
+                Ok(z) if entry.z.len() < MAX_MEASUREMENTS => {
+                    entry.z.push(z);
+                    entry
+                        .sounding
+                        .push(scan.sounding.get(i).copied().unwrap_or(true));
+                }
                 Ok(_) => stats.excess_measurements += 1,
                 Err(Rejection::NonFinite) => stats.non_finite_measurements += 1,
                 Err(Rejection::WrongKind) => stats.mismatched_measurements += 1,
