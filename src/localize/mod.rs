@@ -111,6 +111,8 @@ struct ArrayState {
     mask: SubbandMask,
     /// Arrival times at the microphones of the candidate being removed.
     delays: Vec<f64>,
+    /// Whether this frame was searched (loud enough), so that [`Localizer::probe`] may read it.
+    searched: bool,
 }
 
 /// The localiser stage: one state per array, no I/O, no threads, no clocks.
@@ -245,6 +247,7 @@ impl Localizer {
                 self.sample_rate,
             ),
             delays: vec![0.0; array.len()],
+            searched: false,
             bank,
             searches,
             activity,
@@ -290,6 +293,43 @@ impl Localizer {
                 );
             }
             out.push(obs);
+        }
+        out
+    }
+}
+
+impl Localizer {
+    /// The last frame's own SRP at each of `positions` (world frame), each with the others'
+    /// sub-bands removed, in null standard deviations (as a candidate's `fresh`), the highest
+    /// over the arrays; 0 where no array searched the frame. Tells whether a tracked talker
+    /// sounds now even where the search found no candidate for him (a quieter talker in an
+    /// overlap). Call after [`Localizer::process`] on the same frame.
+    pub fn probe(&mut self, positions: &[Vec3]) -> Vec<f64> {
+        let mut out = vec![0.0f64; positions.len()];
+        for state in &mut self.arrays {
+            let Some(searches) = state.searches.as_ref() else {
+                continue;
+            };
+            if !state.searched || positions.is_empty() {
+                continue;
+            }
+            let sps = state.bank.steps_per_second;
+            state.mask.start(&state.bank);
+            for p in positions {
+                searches.positions.delays(p, sps, &mut state.delays);
+                state.mask.add(&state.delays);
+            }
+            for (i, p) in positions.iter().enumerate() {
+                searches.positions.delays(p, sps, &mut state.delays);
+                let f = fresh_sigmas(
+                    &state.bank,
+                    &mut state.mask,
+                    &state.delays,
+                    i,
+                    positions.len(),
+                );
+                out[i] = out[i].max(f);
+            }
         }
         out
     }
@@ -341,6 +381,7 @@ fn process_array(
     rng: &mut ChaCha8Rng,
     obs: &mut ArrayObservation,
 ) {
+    state.searched = false;
     let power = state.bank.whiten(spectra);
     if ActivityTracker::is_silent(&cfg.activity, power) {
         state.bank.forget();
@@ -362,6 +403,7 @@ fn process_array(
     if obs.activity < cfg.activity.min_activity {
         return;
     }
+    state.searched = true;
     if cfg.search.directions() {
         find_directions(state, cfg, stats.mean, obs);
     }

@@ -658,3 +658,53 @@ fn a_talker_who_stops_is_no_longer_sounding_though_the_smoothing_remembers_him()
         "the smoothing should remember him: {remembered} frames"
     );
 }
+
+#[test]
+fn the_probe_hears_a_tracked_talker_only_while_he_talks() {
+    // The first talker stops half-way; the second talks throughout; nobody is at the third
+    // place. Probed at the three places, each frame.
+    let layout = uca_layout();
+    let centre = layout.arrays[0].centroid();
+    let (p1, p2, p3) = (
+        centre + direction_from_angles(rad(30.0), rad(15.0)) * 1.8,
+        centre + direction_from_angles(rad(-90.0), rad(20.0)) * 1.8,
+        centre + direction_from_angles(rad(150.0), rad(10.0)) * 1.8,
+    );
+    let n = 16 * 2048;
+    let mut s1 = synth::white(n, 43);
+    s1[n / 2..].iter_mut().for_each(|v| *v = 0.0);
+    let s2: Vec<f64> = synth::white(n, 44).iter().map(|v| 0.5 * v).collect();
+    let x = synth::render(
+        &layout.arrays[0].mics,
+        &[(p1, &s1), (p2, &s2)],
+        FS,
+        C,
+        None,
+        0.01,
+        10,
+    );
+    let cfg = LocalizerConfig {
+        search: SearchMode::Directions,
+        ..LocalizerConfig::default()
+    };
+    let min = cfg.peaks.sounding_sigmas;
+    let mut loc = Localizer::new(&layout, &cfg, 1).unwrap();
+    let frame = loc.frame_size();
+    for k in 0..n / frame {
+        let spectra = synth::spectra_at(&x, k * frame, frame);
+        loc.process(&spectra);
+        let f = loc.probe(&[p1, p2, p3]);
+        assert!(f[1] >= min, "frame {k}: the second talker reads {}", f[1]);
+        assert!(f[2] < min, "frame {k}: the empty place reads {}", f[2]);
+        if k < 7 {
+            assert!(f[0] >= min, "frame {k}: the first talker reads {}", f[0]);
+        } else if k >= 8 {
+            assert!(
+                f[0] < min,
+                "frame {k}: the first talker stopped, reads {}",
+                f[0]
+            );
+        }
+    }
+    assert!(loc.probe(&[]).is_empty());
+}

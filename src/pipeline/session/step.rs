@@ -150,7 +150,17 @@ impl Pipeline {
                     routes.cameras(&camera_frames, &mut scans);
                 }
                 let out = tracker.step(&StepInput { k, t: t_est, scans });
-                out.into_iter().map(Estimate::from).collect()
+                let mut est: Vec<Estimate> = out.into_iter().map(Estimate::from).collect();
+                if let Some(loc) = self.localizer.as_mut() {
+                    let positions: Vec<_> = est.iter().map(|e| e.position).collect();
+                    let fresh = loc.probe(&positions);
+                    stages::speaking_from_probes(
+                        &mut est,
+                        &fresh,
+                        loc.config().peaks.sounding_sigmas,
+                    );
+                }
+                est
             }
             TrackSource::Oracle(truth) => stages::oracle_estimates(truth, t_est),
         };
