@@ -107,6 +107,11 @@ pub(crate) struct GccBank {
     norm2: Vec<f64>,
     /// Per band bin: `norm1` summed over the pairs.
     pub bin_norm: Vec<f64>,
+    /// This frame's own whitened cross-spectra, pair-major (for [`GccBank::fresh_srp`]).
+    cross: Vec<Complex>,
+    /// Per pair and sub-band: this frame's sum of |W_a| |W_b| and of its square.
+    cross_norm1: Vec<f64>,
+    cross_norm2: Vec<f64>,
     /// Weight of the previous smoothed cross-spectra in this frame's.
     decay: f64,
     /// Whether the smoothed cross-spectra hold nothing to carry over (start, or after `forget`).
@@ -205,6 +210,7 @@ impl GccBank {
             }
         }
         let subbands = SubbandLags::new(band, subband_bins, frame, npairs, lag_span);
+        let nsub = subbands.count;
         let nb = band.1 + 1 - band.0;
         let kernel = (0..2 * max_half + 4)
             .map(|j| band_kernel(band, frame, j as f64 / interpolation as f64))
@@ -228,6 +234,9 @@ impl GccBank {
             norm1: vec![0.0; nb * npairs],
             norm2: vec![0.0; nb * npairs],
             bin_norm: vec![0.0; nb],
+            cross: vec![Complex::new(0.0, 0.0); nb * npairs],
+            cross_norm1: vec![0.0; npairs * nsub],
+            cross_norm2: vec![0.0; npairs * nsub],
             decay,
             fresh: true,
             lags: vec![0.0; 2 * lag_span + 1],
@@ -350,11 +359,24 @@ impl GccBank {
             let n2 = &mut self.norm2[range];
             // The phase of a source that keeps its place adds up over the frames, that of
             // reverberation and noise does not.
+            let cross = &mut self.cross[q * nb..(q + 1) * nb];
             for k in 0..nb {
                 let m = ma[k] * mb[k];
-                smoothed[k] = wa[k] * wb[k].conj() + smoothed[k] * lam;
+                cross[k] = wa[k] * wb[k].conj();
+                smoothed[k] = cross[k] + smoothed[k] * lam;
                 n1[k] = m + lam * n1[k];
                 n2[k] = m * m + lam2 * n2[k];
+            }
+            let count = self.subbands.count;
+            let width = self.subbands.width;
+            for b in 0..count {
+                let (k0, k1) = (b * width, ((b + 1) * width).min(nb));
+                let (s1, s2) = (k0..k1).fold((0.0, 0.0), |(s1, s2), k| {
+                    let m = ma[k] * mb[k];
+                    (s1 + m, s2 + m * m)
+                });
+                self.cross_norm1[q * count + b] = s1;
+                self.cross_norm2[q * count + b] = s2;
             }
             for (b, n) in self.bin_norm.iter_mut().zip(n1.iter()) {
                 *b += n;
@@ -435,32 +457,42 @@ impl GccBank {
     /// of several frames; this tells whether it is still sounding now.
     pub fn fresh_srp(&self, delays: &[f64], gains: Option<&[f64]>) -> (f64, f64) {
         let nb = self.band.1 + 1 - self.band.0;
-        let width = self.subbands.width.max(1);
+        let (width, count) = (self.subbands.width, self.subbands.count);
         let bin =
             2.0 * PI * self.steps_per_second / (self.interpolation as f64 * self.frame as f64);
         let (mut total, mut var) = (0.0, 0.0);
-        for p in &self.pairs {
-            let (wa, wb) = (
-                &self.white[p.a * nb..(p.a + 1) * nb],
-                &self.white[p.b * nb..(p.b + 1) * nb],
-            );
-            let (ma, mb) = (
-                &self.mags[p.a * nb..(p.a + 1) * nb],
-                &self.mags[p.b * nb..(p.b + 1) * nb],
-            );
+        let mut offsets: Vec<Complex> = Vec::with_capacity(width);
+        for (q, p) in self.pairs.iter().enumerate() {
+            let x = &self.cross[q * nb..(q + 1) * nb];
             let tau =
                 delays.get(p.a).copied().unwrap_or(0.0) - delays.get(p.b).copied().unwrap_or(0.0);
-            // e^{j w_k tau} by recurrence over the band's bins.
-            let mut rot = Complex::from_polar(1.0, bin * self.band.0 as f64 * tau);
+            // e^{j w_k tau} = (phasor of the sub-band's first bin) x (phasor of the offset
+            // within the sub-band): the offsets' phasors are shared by all sub-bands, so the
+            // bins' products are independent of one another (no serial recurrence over the
+            // band) and removed sub-bands cost nothing.
             let step = Complex::from_polar(1.0, bin * tau);
+            offsets.clear();
+            let mut r = Complex::new(1.0, 0.0);
+            for _ in 0..width {
+                offsets.push(r);
+                r *= step;
+            }
+            let mut start = Complex::from_polar(1.0, bin * self.band.0 as f64 * tau);
+            let jump = Complex::from_polar(1.0, bin * width as f64 * tau);
             let (mut num, mut t1, mut t2) = (0.0, 0.0, 0.0);
-            for k in 0..nb {
-                let g = gains.map_or(1.0, |g| g.get(k / width).copied().unwrap_or(0.0));
-                let m = g * ma[k] * mb[k];
-                num += g * (wa[k] * wb[k].conj() * rot).re;
-                t1 += m;
-                t2 += m * m;
-                rot *= step;
+            for b in 0..count {
+                let g = gains.map_or(1.0, |g| g.get(b).copied().unwrap_or(0.0));
+                if g > 0.0 {
+                    let (mut re, mut im) = (0.0, 0.0);
+                    for (c, w) in x[b * width..((b + 1) * width).min(nb)].iter().zip(&offsets) {
+                        re += c.re * w.re - c.im * w.im;
+                        im += c.re * w.im + c.im * w.re;
+                    }
+                    num += g * (start.re * re - start.im * im);
+                    t1 += g * self.cross_norm1[q * count + b];
+                    t2 += g * g * self.cross_norm2[q * count + b];
+                }
+                start *= jump;
             }
             if t1 > 0.0 {
                 total += num / t1;

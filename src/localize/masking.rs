@@ -100,6 +100,12 @@ impl SubbandMask {
         self.dominance.clear();
     }
 
+    /// Forgets the sources added so far but keeps the frame's sub-band covariances and their
+    /// principal eigenvectors, to mask another set of sources in the same frame.
+    pub fn clear_sources(&mut self) {
+        self.dominance.clear();
+    }
+
     /// Adds a found source whose wave reaches the microphones at `delays` (seconds).
     pub fn add(&mut self, delays: &[f64]) {
         if !self.has_principal {

@@ -314,7 +314,8 @@ impl Localizer {
                 continue;
             }
             let sps = state.bank.steps_per_second;
-            state.mask.start(&state.bank);
+            // The search started the mask on this frame (`searched`).
+            state.mask.clear_sources();
             for p in positions {
                 searches.positions.delays(p, sps, &mut state.delays);
                 state.mask.add(&state.delays);
