@@ -360,21 +360,18 @@ impl GccBank {
             // The phase of a source that keeps its place adds up over the frames, that of
             // reverberation and noise does not.
             let cross = &mut self.cross[q * nb..(q + 1) * nb];
-            for k in 0..nb {
-                let m = ma[k] * mb[k];
-                cross[k] = wa[k] * wb[k].conj();
-                smoothed[k] = cross[k] + smoothed[k] * lam;
-                n1[k] = m + lam * n1[k];
-                n2[k] = m * m + lam2 * n2[k];
-            }
-            let count = self.subbands.count;
-            let width = self.subbands.width;
+            let (width, count) = (self.subbands.width, self.subbands.count);
             for b in 0..count {
-                let (k0, k1) = (b * width, ((b + 1) * width).min(nb));
-                let (s1, s2) = (k0..k1).fold((0.0, 0.0), |(s1, s2), k| {
+                let (mut s1, mut s2) = (0.0, 0.0);
+                for k in b * width..((b + 1) * width).min(nb) {
                     let m = ma[k] * mb[k];
-                    (s1 + m, s2 + m * m)
-                });
+                    cross[k] = wa[k] * wb[k].conj();
+                    smoothed[k] = cross[k] + smoothed[k] * lam;
+                    n1[k] = m + lam * n1[k];
+                    n2[k] = m * m + lam2 * n2[k];
+                    s1 += m;
+                    s2 += m * m;
+                }
                 self.cross_norm1[q * count + b] = s1;
                 self.cross_norm2[q * count + b] = s2;
             }

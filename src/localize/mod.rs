@@ -296,9 +296,7 @@ impl Localizer {
         }
         out
     }
-}
 
-impl Localizer {
     /// The last frame's own SRP at each of `positions` (world frame), each with the others'
     /// sub-bands removed, in null standard deviations (as a candidate's `fresh`), the highest
     /// over the arrays; 0 where no array searched the frame. Tells whether a tracked talker

@@ -588,6 +588,38 @@ fn planar_array_searches_the_half_space_facing_the_region() {
     }
 }
 
+/// A place 1.8 m from the uca8 array at azimuth and elevation `az`, `el` (degrees).
+fn talker_place(layout: &Layout, az: f64, el: f64) -> Vec3 {
+    layout.arrays[0].centroid() + direction_from_angles(rad(az), rad(el)) * 1.8
+}
+
+/// 2 s of white noise from two talkers (place, seed) in free field: the first stops half-way,
+/// the second, at amplitude `second_gain`, talks throughout; `noise_seed` drives the sensor noise.
+fn one_stops_one_goes_on(
+    layout: &Layout,
+    first: (Vec3, u64),
+    second: (Vec3, u64),
+    second_gain: f64,
+    noise_seed: u64,
+) -> Vec<Vec<f64>> {
+    let n = 16 * 2048;
+    let mut s1 = synth::white(n, first.1);
+    s1[n / 2..].iter_mut().for_each(|v| *v = 0.0);
+    let s2: Vec<f64> = synth::white(n, second.1)
+        .iter()
+        .map(|v| second_gain * v)
+        .collect();
+    synth::render(
+        &layout.arrays[0].mics,
+        &[(first.0, &s1), (second.0, &s2)],
+        FS,
+        C,
+        None,
+        0.01,
+        noise_seed,
+    )
+}
+
 #[test]
 fn a_talker_who_stops_is_no_longer_sounding_though_the_smoothing_remembers_him() {
     // Two talkers for 1 s, then only the second for 1 s. The smoothed maps keep the first in
@@ -596,22 +628,10 @@ fn a_talker_who_stops_is_no_longer_sounding_though_the_smoothing_remembers_him()
     let layout = uca_layout();
     let centre = layout.arrays[0].centroid();
     let (p1, p2) = (
-        centre + direction_from_angles(rad(30.0), rad(15.0)) * 1.8,
-        centre + direction_from_angles(rad(-90.0), rad(20.0)) * 1.8,
+        talker_place(&layout, 30.0, 15.0),
+        talker_place(&layout, -90.0, 20.0),
     );
-    let n = 16 * 2048;
-    let mut s1 = synth::white(n, 41);
-    s1[n / 2..].iter_mut().for_each(|v| *v = 0.0);
-    let s2 = synth::white(n, 42);
-    let x = synth::render(
-        &layout.arrays[0].mics,
-        &[(p1, &s1), (p2, &s2)],
-        FS,
-        C,
-        None,
-        0.01,
-        9,
-    );
+    let x = one_stops_one_goes_on(&layout, (p1, 41), (p2, 42), 1.0, 9);
     let cfg = LocalizerConfig {
         search: SearchMode::Directions,
         ..LocalizerConfig::default()
@@ -664,25 +684,13 @@ fn the_probe_hears_a_tracked_talker_only_while_he_talks() {
     // The first talker stops half-way; the second talks throughout; nobody is at the third
     // place. Probed at the three places, each frame.
     let layout = uca_layout();
-    let centre = layout.arrays[0].centroid();
     let (p1, p2, p3) = (
-        centre + direction_from_angles(rad(30.0), rad(15.0)) * 1.8,
-        centre + direction_from_angles(rad(-90.0), rad(20.0)) * 1.8,
-        centre + direction_from_angles(rad(150.0), rad(10.0)) * 1.8,
+        talker_place(&layout, 30.0, 15.0),
+        talker_place(&layout, -90.0, 20.0),
+        talker_place(&layout, 150.0, 10.0),
     );
-    let n = 16 * 2048;
-    let mut s1 = synth::white(n, 43);
-    s1[n / 2..].iter_mut().for_each(|v| *v = 0.0);
-    let s2: Vec<f64> = synth::white(n, 44).iter().map(|v| 0.5 * v).collect();
-    let x = synth::render(
-        &layout.arrays[0].mics,
-        &[(p1, &s1), (p2, &s2)],
-        FS,
-        C,
-        None,
-        0.01,
-        10,
-    );
+    let x = one_stops_one_goes_on(&layout, (p1, 43), (p2, 44), 0.5, 10);
+    let n = x[0].len();
     let cfg = LocalizerConfig {
         search: SearchMode::Directions,
         ..LocalizerConfig::default()
