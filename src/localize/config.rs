@@ -225,7 +225,7 @@ pub struct PeakConfig {
     /// 0.94, recall 0.68 / 0.82 / 0.81 -> 0.52 / 0.63 / 0.66 (3: 0.89 / 0.90 / 0.89 and 0.56 /
     /// 0.69 / 0.70). The tracks themselves do not change. The pipeline also probes each track's
     /// position against this threshold ([`Localizer::probe`](super::Localizer::probe)), which
-    /// brings the recall to 0.70 / 0.74 / 0.78 at precision 0.93.
+    /// brings the recall to 0.69 / 0.74 / 0.77 at precision 0.93.
     pub sounding_sigmas: f64,
 }
 
