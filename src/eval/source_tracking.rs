@@ -37,6 +37,13 @@ pub struct SpeakingScore {
     pub false_alarms: usize,
     /// Matched steps at which the source is silent.
     pub silent_steps: usize,
+    /// Changes of the read (speaking or not) between consecutive matched steps: what a "who is
+    /// speaking" display shows switching.
+    #[serde(default)]
+    pub changes: usize,
+    /// Changes of the source's own talking between the same pairs of steps.
+    #[serde(default)]
+    pub true_changes: usize,
 }
 
 impl SpeakingScore {
@@ -51,6 +58,12 @@ impl SpeakingScore {
         (self.talking_steps > 0).then(|| self.detected as f64 / self.talking_steps as f64)
     }
 
+    /// changes / true changes: 1 when the read switches only as often as the talker does
+    /// (flicker shows as more); None when the talker never switches while matched.
+    pub fn change_ratio(&self) -> Option<f64> {
+        (self.true_changes > 0).then(|| self.changes as f64 / self.true_changes as f64)
+    }
+
     /// Sum of two scores.
     pub fn add(&self, o: &Self) -> Self {
         Self {
@@ -58,6 +71,8 @@ impl SpeakingScore {
             detected: self.detected + o.detected,
             false_alarms: self.false_alarms + o.false_alarms,
             silent_steps: self.silent_steps + o.silent_steps,
+            changes: self.changes + o.changes,
+            true_changes: self.true_changes + o.true_changes,
         }
     }
 }
@@ -167,18 +182,28 @@ pub(crate) fn source_tracking(ctx: &SourceContext, s: &TruthSource, i: usize) ->
         .collect();
     let active_labels = active_shares(&grid.labels, &pos_match, &active);
     let mut speaking = SpeakingScore::default();
+    // (step, read, talking) at the last matched step.
+    let mut last: Option<(usize, bool, bool)> = None;
     for (k, m) in pos_match.iter().enumerate() {
         let Some(j) = *m else { continue };
         let says = grid.speaking[k]
             .get(j)
             .is_some_and(|&v| v >= SPEAKING_THRESHOLD);
-        if s.is_active(grid.times[k]) {
+        let talks = s.is_active(grid.times[k]);
+        if talks {
             speaking.talking_steps += 1;
             speaking.detected += usize::from(says);
         } else {
             speaking.silent_steps += 1;
             speaking.false_alarms += usize::from(says);
         }
+        if let Some((k0, said, talked)) = last
+            && k0 + 1 == k
+        {
+            speaking.changes += usize::from(said != says);
+            speaking.true_changes += usize::from(talked != talks);
+        }
+        last = Some((k, says, talks));
     }
     let mut distinct: Vec<usize> = pos_match.iter().flatten().copied().collect();
     distinct.sort_unstable();

@@ -153,6 +153,10 @@ fn figure_rows(f: &TrackingFigures) -> Vec<(String, String)> {
             num(f.speaking.recall(), 2)
         ),
     ));
+    rows.push((
+        "speaking changes / true".into(),
+        num(f.speaking.change_ratio(), 2),
+    ));
     rows
 }
 

@@ -415,7 +415,38 @@ mod tests {
         assert_eq!((sp.silent_steps, sp.false_alarms), (6, 4));
         assert_eq!(sp.recall(), Some(0.75));
         assert_eq!(sp.precision(), Some(3.0 / 7.0));
+        // The read switches once (at 1.5), the talker twice (at 1 and 3).
+        assert_eq!((sp.changes, sp.true_changes), (1, 2));
+        assert_eq!(sp.change_ratio(), Some(0.5));
         assert_eq!(r.all.speaking, sp);
+    }
+
+    #[test]
+    fn a_flickering_speaking_counts_every_switch() {
+        let p = Vec3::new(2.0, 0.0, 1.0);
+        // s1 talks throughout [1, 4); its track reads speaking on every other step while he talks.
+        let sources = [source("s1", p, vec![(1.0, 4.0)])];
+        let lines: Vec<TracksLine> = (0..10)
+            .map(|k| {
+                let t = k as f64 * 0.5;
+                let mut tr = track(Label::new(0, 0), p);
+                tr.speaking = if (1.0..4.0).contains(&t) && k % 2 == 0 {
+                    0.9
+                } else {
+                    0.1
+                };
+                TracksLine {
+                    t,
+                    tracks: vec![tr],
+                }
+            })
+            .collect();
+        let r = score_tracks(&layout(), &sources, &lines, &EvalConfig::default());
+        let sp = r.all.sources[0].speaking;
+        // Talking at steps 2-7, read at 2, 4, 6: the read switches at 2, 3, 4, 5, 6 and 7, the
+        // talker at 2 and 8.
+        assert_eq!((sp.changes, sp.true_changes), (6, 2));
+        assert_eq!(sp.change_ratio(), Some(3.0));
     }
 
     #[test]

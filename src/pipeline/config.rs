@@ -3,6 +3,7 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use super::speaking::SpeakingConfig;
 use crate::localize::LocalizerConfig;
 use crate::separate::SeparatorConfig;
 use crate::track::TrackerConfig;
@@ -76,6 +77,8 @@ pub struct PipelineConfig {
     pub track: TrackerConfig,
     /// Settings of the separator.
     pub separate: SeparatorConfig,
+    /// How each track's `speaking` follows the localiser's probe at the track.
+    pub speaking: SpeakingConfig,
 }
 
 impl Default for PipelineConfig {
@@ -93,6 +96,7 @@ impl Default for PipelineConfig {
             localize: LocalizerConfig::default(),
             track: TrackerConfig::default(),
             separate: SeparatorConfig::default(),
+            speaking: SpeakingConfig::default(),
         }
     }
 }
@@ -120,7 +124,7 @@ impl PipelineConfig {
         if !(0.0..=60.0).contains(&self.max_gap_s) {
             return Err(ConfigError::new("max_gap_s", "must be in 0..=60 s"));
         }
-        Ok(())
+        self.speaking.validate().map_err(|e| e.within("speaking"))
     }
 
     /// Parses a JSON or TOML configuration (TOML unless the text starts with `{`), filling absent

@@ -12,6 +12,7 @@ pub mod offline;
 mod sensor_queue;
 mod separation;
 mod session;
+pub mod speaking;
 pub mod stages;
 
 pub use audio_history::AudioHistory;
@@ -22,3 +23,4 @@ pub use input::InputError;
 pub use sensor_queue::SensorQueue;
 pub use separation::{SeparationChunk, SeparationDriver, SeparationHandoff, SeparationWork};
 pub use session::{LIVE_SETTINGS, Pipeline, PipelineStats};
+pub use speaking::{SpeakingConfig, SpeakingFilter};

@@ -128,18 +128,6 @@ impl Timeline {
     }
 }
 
-/// Marks as speaking the estimates whose position sounds in the localiser's current frame
-/// (`fresh`, from [`crate::localize::Localizer::probe`], at least `min`). The tracker's
-/// `speaking` counts only the candidates the search found, and in an overlap the search often
-/// finds only the louder talkers; the probe hears the quieter one at his track.
-pub fn speaking_from_probes(estimates: &mut [Estimate], fresh: &[f64], min: f64) {
-    for (e, &f) in estimates.iter_mut().zip(fresh) {
-        if f >= min {
-            e.speaking = 1.0;
-        }
-    }
-}
-
 /// The measurement line of one localiser observation (degrees, as in the scene format).
 pub fn measurement_line(layout: &Layout, obs: &ArrayObservation, t: f64) -> AudioMeasurementLine {
     AudioMeasurementLine {

@@ -22,6 +22,7 @@ use super::config::{ConfigError, PipelineConfig};
 use super::input::{self, InputError};
 use super::sensor_queue::SensorQueue;
 use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
+use super::speaking::SpeakingFilter;
 use super::stages::{SensorRoutes, Timeline};
 use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
@@ -76,6 +77,8 @@ pub struct Pipeline {
     source: TrackSource,
     timeline: Timeline,
     live: BTreeSet<Label>,
+    /// Each track's `speaking` from the localiser's probe.
+    speaking: SpeakingFilter,
     seen: BTreeSet<Label>,
     separation: Option<SeparationFeed>,
     stats: PipelineStats,
@@ -136,6 +139,7 @@ impl Pipeline {
             source: TrackSource::Tracker { tracker, routes },
             timeline: Timeline::default(),
             live: BTreeSet::new(),
+            speaking: SpeakingFilter::new(&cfg.speaking, cfg.step_s),
             seen: BTreeSet::new(),
             separation,
             stats: PipelineStats::default(),

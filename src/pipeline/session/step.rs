@@ -151,14 +151,12 @@ impl Pipeline {
                 }
                 let out = tracker.step(&StepInput { k, t: t_est, scans });
                 let mut est: Vec<Estimate> = out.into_iter().map(Estimate::from).collect();
+                // With a localiser, `speaking` is the probe's filtered reading at each track:
+                // the tracker's own counts only the candidates the search found, and in an
+                // overlap the search often finds only the louder talkers.
                 if let Some(loc) = self.localizer.as_mut() {
                     let positions: Vec<_> = est.iter().map(|e| e.position).collect();
-                    let fresh = loc.probe(&positions);
-                    stages::speaking_from_probes(
-                        &mut est,
-                        &fresh,
-                        loc.config().peaks.sounding_sigmas,
-                    );
+                    self.speaking.update(&mut est, &loc.probe(&positions));
                 }
                 est
             }

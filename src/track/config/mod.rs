@@ -75,6 +75,7 @@ pub struct TrackerConfig {
     /// detection probability.
     pub face: FaceConfig,
     /// Exponential smoothing weight of the new `speaking` value, in (0, 1]; 1 = no smoothing.
+    /// (A pipeline with a localiser reports its own `speaking`, see the pipeline's `speaking`.)
     pub speaking_smoothing: f64,
     /// Keep track means inside the region (grown by 0.5 m) when a region is known; the
     /// unobservable range of direction-only tracks would otherwise drift away.
