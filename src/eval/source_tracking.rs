@@ -38,7 +38,8 @@ pub struct SpeakingScore {
     /// Matched steps at which the source is silent.
     pub silent_steps: usize,
     /// Changes of the read (speaking or not) between consecutive matched steps: what a "who is
-    /// speaking" display shows switching.
+    /// speaking" display shows switching for this person (across an identity switch the two
+    /// reads are of different tracks, as the display would show them).
     #[serde(default)]
     pub changes: usize,
     /// Changes of the source's own talking between the same pairs of steps.

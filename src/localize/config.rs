@@ -223,11 +223,11 @@ pub struct PeakConfig {
     /// uca8 3 talkers seeds 1-6 / real speech seeds 1-6: silent steps read as speaking 38 / 58
     /// / 47 % -> 8 / 10 / 7 %, precision of `speaking` 0.75 / 0.77 / 0.73 -> 0.92 / 0.94 /
     /// 0.94, recall 0.68 / 0.82 / 0.81 -> 0.52 / 0.63 / 0.66 (3: 0.89 / 0.90 / 0.89 and 0.56 /
-    /// 0.69 / 0.70). The tracks themselves do not change. With a localiser the pipeline's
-    /// `speaking` comes instead from the same reading at each track's position
-    /// ([`Localizer::probe`](super::Localizer::probe)), filtered over the steps
-    /// (`speaking` settings of the pipeline); this threshold keeps deciding the candidates'
-    /// `sounding` flag, which the tracker's talking mode and its own `speaking` read.
+    /// 0.69 / 0.70), measured when the tracker's `speaking` was the one reported. The tracks
+    /// themselves do not change. The flag now feeds only the tracker's own `speaking`, which a
+    /// pipeline whose localiser can probe replaces by the same reading at each track's position
+    /// ([`Localizer::probe`](super::Localizer::probe)) filtered over the steps (the pipeline's
+    /// `speaking` settings); the threshold then changes no output of the pipeline.
     pub sounding_sigmas: f64,
 }
 

@@ -299,10 +299,14 @@ impl Localizer {
 
     /// The last frame's own SRP at each of `positions` (world frame), each with the others'
     /// sub-bands removed, in null standard deviations (as a candidate's `fresh`), the highest
-    /// over the arrays; 0 where no array searched the frame. Tells whether a tracked talker
-    /// sounds now even where the search found no candidate for him (a quieter talker in an
-    /// overlap). Call after [`Localizer::process`] on the same frame.
-    pub fn probe(&mut self, positions: &[Vec3]) -> Vec<f64> {
+    /// over the arrays; 0 where no array searched the frame (too quiet). Tells whether a tracked
+    /// talker sounds now even where the search found no candidate for him (a quieter talker in
+    /// an overlap). None when no array can search at all (single microphones only): the layout
+    /// then says nothing about who sounds. Call after [`Localizer::process`] on the same frame.
+    pub fn probe(&mut self, positions: &[Vec3]) -> Option<Vec<f64>> {
+        if self.arrays.iter().all(|a| a.searches.is_none()) {
+            return None;
+        }
         let mut out = vec![0.0f64; positions.len()];
         for state in &mut self.arrays {
             let Some(searches) = state.searches.as_ref() else {
@@ -330,7 +334,7 @@ impl Localizer {
                 out[i] = out[i].max(f);
             }
         }
-        out
+        Some(out)
     }
 }
 

@@ -1,5 +1,5 @@
-//! Who spoke when: speech segments of each track label, from the tracker's `speaking`
-//! probability, written as RTTM.
+//! Who spoke when: speech segments of each track label, from its `speaking` probability,
+//! written as RTTM.
 
 use std::collections::BTreeMap;
 

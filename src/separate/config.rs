@@ -189,8 +189,11 @@ pub struct PostFilterConfig {
     /// Prior weight of a label the tracker believes silent, relative to one that talks: each
     /// label's claim on a bin is weighted by `presence_floor + (1 - presence_floor) x presence`
     /// (presence = speaking x activity) and by its fade envelope. 1 (default) ignores the
-    /// speaking probabilities: with oracle talk spurts 0.1 gains 0.3 dB SI-SDR on uca8, but the
-    /// tracker's probabilities cost 0.2 dB (uca8) and 0.5 dB (paper-linear6), seeds 1-3.
+    /// speaking probabilities: with oracle talk spurts 0.1 gains 0.3 dB SI-SDR on uca8 (0.5 dB
+    /// and 1.28 -> 1.14 streams per talker on paper-linear6 seeds 1-12), but estimated ones
+    /// cost: the tracker's 0.2 dB (uca8) and 0.5 dB (paper-linear6), seeds 1-3; the filtered
+    /// probe's (pipeline `speaking`), paper-linear6 seeds 1-12, 0.5: -0.13 dB and 1.25 -> 1.31
+    /// streams, 0.3: -0.25 dB and 1.39 streams.
     pub presence_floor: f64,
     /// Harmonic grouping of the bins the array cannot resolve between labels.
     pub harmonic: HarmonicConfig,

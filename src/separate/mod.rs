@@ -53,7 +53,7 @@ pub struct Target {
     /// Steer by direction only (far field from the array centroid toward `position`), for tracks
     /// whose range is unknown.
     pub direction_only: bool,
-    /// The tracker's probability that this target is speaking, in [0, 1].
+    /// The probability that this target is speaking, in [0, 1] (the pipeline's `speaking`).
     pub speaking: f64,
     /// This frame's voice-activity score, in [0, 1].
     pub activity: f64,

@@ -70,8 +70,8 @@ impl PostFilter {
 
     /// A label's prior weight in the competition for the bins: its envelope gain (a label fading
     /// in or out has a partial claim) times `presence_floor + (1 - presence_floor) presence`,
-    /// where presence is the tracker's speaking probability times the voice activity. A label the
-    /// tracker believes silent thus takes a bin only where its beamformer output clearly
+    /// where presence is the target's speaking probability times the voice activity. A label
+    /// believed silent thus takes a bin only where its beamformer output clearly
     /// dominates, so a silent or spurious label near a talker does not split that talker's energy.
     pub fn prior(&self, envelope_gain: f64, presence: f64) -> f64 {
         let p = if presence.is_finite() {

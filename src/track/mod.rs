@@ -95,6 +95,8 @@ mod slice_set;
 
 use nalgebra::Matrix6;
 
+pub(crate) use modes::ModeModel;
+
 pub use birth::BirthTerm;
 pub use config::{
     AudioDirectionConfig, AudioPositionConfig, BirthConfig, CameraConfig, ConfigError,

@@ -23,7 +23,9 @@ pub(crate) struct ModeModel {
 }
 
 impl ModeModel {
-    fn new(mean_on_s: f64, mean_off_s: f64, initial: f64) -> Self {
+    /// A chain whose "on" and "off" last `mean_on_s` and `mean_off_s` on average, "on" with
+    /// probability `initial` at the start.
+    pub fn new(mean_on_s: f64, mean_off_s: f64, initial: f64) -> Self {
         Self {
             stop_per_s: 1.0 / mean_on_s,
             start_per_s: 1.0 / mean_off_s,

@@ -139,7 +139,7 @@ impl Pipeline {
             source: TrackSource::Tracker { tracker, routes },
             timeline: Timeline::default(),
             live: BTreeSet::new(),
-            speaking: SpeakingFilter::new(&cfg.speaking, cfg.step_s),
+            speaking: SpeakingFilter::new(&cfg.speaking, clock.step_s()),
             seen: BTreeSet::new(),
             separation,
             stats: PipelineStats::default(),

@@ -151,12 +151,14 @@ impl Pipeline {
                 }
                 let out = tracker.step(&StepInput { k, t: t_est, scans });
                 let mut est: Vec<Estimate> = out.into_iter().map(Estimate::from).collect();
-                // With a localiser, `speaking` is the probe's filtered reading at each track:
-                // the tracker's own counts only the candidates the search found, and in an
-                // overlap the search often finds only the louder talkers.
+                // Where the localiser can probe, `speaking` is its filtered reading at each
+                // track: the tracker's own counts only the candidates the search found, and in
+                // an overlap the search often finds only the louder talkers.
                 if let Some(loc) = self.localizer.as_mut() {
                     let positions: Vec<_> = est.iter().map(|e| e.position).collect();
-                    self.speaking.update(&mut est, &loc.probe(&positions));
+                    if let Some(readings) = loc.probe(&positions) {
+                        self.speaking.update(&mut est, &readings);
+                    }
                 }
                 est
             }
