@@ -253,6 +253,14 @@ mod tests {
     }
 
     #[test]
+    fn a_step_without_a_reading_only_lets_the_belief_drift_toward_undecided() {
+        let mut f = SpeakingFilter::new(&SpeakingConfig::default(), STEP);
+        let s = run(&mut f, &[30.0, 30.0, 30.0, f64::NAN, f64::NAN]);
+        // The chain's prediction alone: a little less sure each step, not dropped.
+        assert!(s[3] < s[2] && s[4] < s[3] && s[4] > 0.7, "{s:?}");
+    }
+
+    #[test]
     fn a_reading_that_is_not_a_number_leaves_only_the_prior() {
         let f = SpeakingFilter::new(&SpeakingConfig::default(), STEP);
         assert_eq!(f.likelihood_ratio(f64::NAN), 1.0);

@@ -113,8 +113,11 @@ impl Pipeline {
         let t_est = self.clock.estimate_time(k);
         let end_sample = self.clock.step_end_sample(k);
 
-        // Audio measurements: the localiser on the frame ending at the step's end.
-        let observations = self.localize(end_sample);
+        // Audio measurements: the localiser on the frame ending at the step's end (None when it
+        // did not run: no localiser, or the frame's audio is not all there, as at the end).
+        let localized = self.localize(end_sample);
+        let frame_seen = localized.is_some();
+        let observations = localized.unwrap_or_default();
         for obs in &observations {
             sink(PipelineEvent::Measurements(stages::measurement_line(
                 &self.layout,
@@ -157,6 +160,13 @@ impl Pipeline {
                 if let Some(loc) = self.localizer.as_mut() {
                     let positions: Vec<_> = est.iter().map(|e| e.position).collect();
                     if let Some(readings) = loc.probe(&positions) {
+                        // A step whose frame the localiser did not see gives no evidence (its
+                        // state is the previous frame's): the chain only predicts.
+                        let readings = if frame_seen {
+                            readings
+                        } else {
+                            vec![f64::NAN; positions.len()]
+                        };
                         self.speaking.update(&mut est, &readings);
                     }
                 }
@@ -188,20 +198,18 @@ impl Pipeline {
         }
     }
 
-    fn localize(&mut self, end_sample: u64) -> Vec<crate::localize::ArrayObservation> {
+    fn localize(&mut self, end_sample: u64) -> Option<Vec<crate::localize::ArrayObservation>> {
         let (Some(localizer), Some(audio)) = (self.localizer.as_mut(), self.audio.as_ref()) else {
-            return Vec::new();
+            return None;
         };
         let n = self.loc_stft.frame();
         let from = end_sample as i64 - n as i64;
         for ch in 0..audio.channels() {
-            if audio.read(ch, from, &mut self.frame_buf[..n]).is_err() {
-                return Vec::new();
-            }
+            audio.read(ch, from, &mut self.frame_buf[..n]).ok()?;
             self.loc_stft
                 .forward(&self.frame_buf[..n], self.loc_spectra.channel_mut(ch));
         }
-        localizer.process(&self.loc_spectra)
+        Some(localizer.process(&self.loc_spectra))
     }
 
     fn emit_tracks(&mut self, k: u64, t: f64, estimates: &[Estimate], sink: &mut EventSink<'_>) {
