@@ -5,7 +5,9 @@ use std::collections::BTreeSet;
 
 use super::{Pipeline, TrackSource};
 use crate::label::Label;
+use crate::localize::Localizer;
 use crate::pipeline::sensor_queue::SensorQueue;
+use crate::pipeline::speaking::SpeakingFilter;
 use crate::pipeline::stages::{self, Estimate};
 use crate::pipeline::{EventSink, PipelineEvent};
 use crate::scene::format::TracksLine;
@@ -127,23 +129,7 @@ impl Pipeline {
         }
         let activity = observations.iter().map(|o| o.activity).fold(0.0, f64::max);
 
-        // Camera frames and device measurements of this step.
-        let mut camera_frames: Vec<(usize, DetectionFrame)> = Vec::new();
-        for (j, q) in self.cameras.iter_mut().enumerate() {
-            let mut frames = q.take_before(t1);
-            // One frame per camera and step: the latest (the tracker models one look per step).
-            if let Some(f) = frames.pop() {
-                camera_frames.push((j, f));
-            }
-        }
-        if self.cfg.cameras && camera_frames.len() < self.cameras.len() {
-            self.stats.steps_with_absent_camera += 1;
-        }
-        let mut device_frames: Vec<AudioMeasurementFrame> = Vec::new();
-        for q in &mut self.devices {
-            device_frames.extend(q.take_before(t1));
-        }
-
+        let (camera_frames, device_frames) = self.take_sensor_frames(t1);
         let estimates = match &mut self.source {
             TrackSource::Tracker { tracker, routes } => {
                 let mut scans: Vec<Scan> = Vec::new();
@@ -154,22 +140,12 @@ impl Pipeline {
                 }
                 let out = tracker.step(&StepInput { k, t: t_est, scans });
                 let mut est: Vec<Estimate> = out.into_iter().map(Estimate::from).collect();
-                // Where the localiser can probe, `speaking` is its filtered reading at each
-                // track: the tracker's own counts only the candidates the search found, and in
-                // an overlap the search often finds only the louder talkers.
-                if let Some(loc) = self.localizer.as_mut() {
-                    let positions: Vec<_> = est.iter().map(|e| e.position).collect();
-                    if let Some(readings) = loc.probe(&positions) {
-                        // A step whose frame the localiser did not see gives no evidence (its
-                        // state is the previous frame's): the chain only predicts.
-                        let readings = if frame_seen {
-                            readings
-                        } else {
-                            vec![f64::NAN; positions.len()]
-                        };
-                        self.speaking.update(&mut est, &readings);
-                    }
-                }
+                probe_speaking(
+                    self.localizer.as_mut(),
+                    &mut self.speaking,
+                    &mut est,
+                    frame_seen,
+                );
                 est
             }
             TrackSource::Oracle(truth) => stages::oracle_estimates(truth, t_est),
@@ -196,6 +172,28 @@ impl Pipeline {
                 sink,
             );
         }
+    }
+
+    /// This step's camera frames (the latest per camera: the tracker models one look per step)
+    /// and device measurement frames.
+    fn take_sensor_frames(
+        &mut self,
+        t1: f64,
+    ) -> (Vec<(usize, DetectionFrame)>, Vec<AudioMeasurementFrame>) {
+        let mut camera_frames = Vec::new();
+        for (j, q) in self.cameras.iter_mut().enumerate() {
+            if let Some(f) = q.take_before(t1).pop() {
+                camera_frames.push((j, f));
+            }
+        }
+        if self.cfg.cameras && camera_frames.len() < self.cameras.len() {
+            self.stats.steps_with_absent_camera += 1;
+        }
+        let mut device_frames = Vec::new();
+        for q in &mut self.devices {
+            device_frames.extend(q.take_before(t1));
+        }
+        (camera_frames, device_frames)
     }
 
     fn localize(&mut self, end_sample: u64) -> Option<Vec<crate::localize::ArrayObservation>> {
@@ -230,5 +228,27 @@ impl Pipeline {
             tracks: estimates.iter().map(Estimate::to_file).collect(),
         };
         sink(PipelineEvent::Tracks { step: k, line });
+    }
+}
+
+/// Where the localiser can probe, sets `speaking` to its filtered reading at each track: the
+/// tracker's own counts only the candidates the search found, and in an overlap the search often
+/// finds only the louder talkers. A step whose frame the localiser did not see (`frame_seen`
+/// false; its state is the previous frame's) gives no evidence: the chain only predicts.
+fn probe_speaking(
+    localizer: Option<&mut Localizer>,
+    speaking: &mut SpeakingFilter,
+    estimates: &mut [Estimate],
+    frame_seen: bool,
+) {
+    let Some(loc) = localizer else { return };
+    let positions: Vec<_> = estimates.iter().map(|e| e.position).collect();
+    if let Some(readings) = loc.probe(&positions) {
+        let readings = if frame_seen {
+            readings
+        } else {
+            vec![f64::NAN; positions.len()]
+        };
+        speaking.update(estimates, &readings);
     }
 }
