@@ -391,22 +391,28 @@ mod tests {
         assert!(all.sources[1].onset_s.is_none());
     }
 
-    #[test]
-    fn speaking_is_scored_against_the_matched_sources_talk_spurts() {
-        let p = Vec3::new(2.0, 0.0, 1.0);
-        // s1 talks during [1, 3); its track reads speaking from t = 1.5 to the end.
-        let sources = [source("s1", p, vec![(1.0, 3.0)])];
-        let lines: Vec<TracksLine> = (0..10)
+    /// Ten steps of 0.5 s of one track at `p` whose read at step k (time t) is `says(k, t)`
+    /// (speaking 0.9, else 0.1).
+    fn speaking_lines(p: Vec3, says: impl Fn(usize, f64) -> bool) -> Vec<TracksLine> {
+        (0..10)
             .map(|k| {
                 let t = k as f64 * 0.5;
                 let mut tr = track(Label::new(0, 0), p);
-                tr.speaking = if t >= 1.5 { 0.9 } else { 0.1 };
+                tr.speaking = if says(k, t) { 0.9 } else { 0.1 };
                 TracksLine {
                     t,
                     tracks: vec![tr],
                 }
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn speaking_is_scored_against_the_matched_sources_talk_spurts() {
+        let p = Vec3::new(2.0, 0.0, 1.0);
+        // s1 talks during [1, 3); its track reads speaking from t = 1.5 to the end.
+        let sources = [source("s1", p, vec![(1.0, 3.0)])];
+        let lines = speaking_lines(p, |_, t| t >= 1.5);
         let r = score_tracks(&layout(), &sources, &lines, &EvalConfig::default());
         let sp = r.all.sources[0].speaking;
         // Talking at t = 1, 1.5, 2, 2.5 (read at 1.5-2.5); silent at 0, 0.5 and 3-4.5, of
@@ -426,21 +432,7 @@ mod tests {
         let p = Vec3::new(2.0, 0.0, 1.0);
         // s1 talks throughout [1, 4); its track reads speaking on every other step while he talks.
         let sources = [source("s1", p, vec![(1.0, 4.0)])];
-        let lines: Vec<TracksLine> = (0..10)
-            .map(|k| {
-                let t = k as f64 * 0.5;
-                let mut tr = track(Label::new(0, 0), p);
-                tr.speaking = if (1.0..4.0).contains(&t) && k % 2 == 0 {
-                    0.9
-                } else {
-                    0.1
-                };
-                TracksLine {
-                    t,
-                    tracks: vec![tr],
-                }
-            })
-            .collect();
+        let lines = speaking_lines(p, |k, t| (1.0..4.0).contains(&t) && k % 2 == 0);
         let r = score_tracks(&layout(), &sources, &lines, &EvalConfig::default());
         let sp = r.all.sources[0].speaking;
         // Talking at steps 2-7, read at 2, 4, 6: the read switches at 2, 3, 4, 5, 6 and 7, the

@@ -297,6 +297,11 @@ impl Localizer {
         out
     }
 
+    /// Whether some array can search, and so [`Localizer::probe`] can read anything.
+    pub fn can_probe(&self) -> bool {
+        self.arrays.iter().any(|a| a.searches.is_some())
+    }
+
     /// The last frame's own SRP at each of `positions` (world frame), each with the others'
     /// sub-bands removed, in null standard deviations (as a candidate's `fresh`), the highest
     /// over the arrays; 0 where no array searched the frame (too quiet). Tells whether a tracked
@@ -304,7 +309,7 @@ impl Localizer {
     /// an overlap). None when no array can search at all (single microphones only): the layout
     /// then says nothing about who sounds. Call after [`Localizer::process`] on the same frame.
     pub fn probe(&mut self, positions: &[Vec3]) -> Option<Vec<f64>> {
-        if self.arrays.iter().all(|a| a.searches.is_none()) {
+        if !self.can_probe() {
             return None;
         }
         let mut out = vec![0.0f64; positions.len()];

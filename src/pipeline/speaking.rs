@@ -103,7 +103,7 @@ pub struct SpeakingFilter {
     cfg: SpeakingConfig,
     chain: ModeModel,
     step_s: f64,
-    /// Where a new label starts: the chain's stationary probability of talking.
+    /// Where a new label starts: the stepped chain's stationary probability of talking.
     stationary: f64,
     beliefs: HashMap<Label, f64>,
 }
@@ -111,18 +111,13 @@ pub struct SpeakingFilter {
 impl SpeakingFilter {
     /// A filter for steps of `step_s` seconds.
     pub fn new(cfg: &SpeakingConfig, step_s: f64) -> Self {
-        let stop = -(-step_s / cfg.mean_talk_s).exp_m1();
-        let start = -(-step_s / cfg.mean_pause_s).exp_m1();
-        let stationary = if stop + start > 0.0 {
-            start / (stop + start)
-        } else {
-            0.5
-        };
+        // The chain's own start probability is not used: new labels start at `stationary`.
+        let chain = ModeModel::new(cfg.mean_talk_s, cfg.mean_pause_s, 0.5);
         Self {
             cfg: cfg.clone(),
-            chain: ModeModel::new(cfg.mean_talk_s, cfg.mean_pause_s, stationary),
+            stationary: chain.stationary(step_s),
+            chain,
             step_s,
-            stationary,
             beliefs: HashMap::new(),
         }
     }
@@ -147,16 +142,13 @@ impl SpeakingFilter {
         self.beliefs
             .retain(|label, _| estimates.iter().any(|e| e.label == *label));
         for (e, &r) in estimates.iter_mut().zip(readings) {
-            let before = self.beliefs.get(&e.label).copied();
-            let prior = before.map_or(self.stationary, |p| self.chain.predict(p, self.step_s));
-            let before = before.unwrap_or(self.stationary);
-            let lr = self.likelihood_ratio(r);
-            let p = prior * lr / (prior * lr + 1.0 - prior);
-            let p = if p.is_finite() {
-                p.clamp(0.0, 1.0)
-            } else {
-                before
+            let prior = match self.beliefs.get(&e.label) {
+                Some(&p) => self.chain.predict(p, self.step_s),
+                None => self.stationary,
             };
+            // The prior is in [0, 1] and the ratio finite and positive, so this is too.
+            let lr = self.likelihood_ratio(r);
+            let p = (prior * lr / (prior * lr + 1.0 - prior)).clamp(0.0, 1.0);
             self.beliefs.insert(e.label, p);
             e.speaking = p;
         }

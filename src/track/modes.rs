@@ -33,11 +33,29 @@ impl ModeModel {
         }
     }
 
+    /// The probability of "on" that one step of `dt` seconds leaves unchanged (at `dt` 0, where
+    /// every one is, the start probability).
+    pub fn stationary(&self, dt: f64) -> f64 {
+        let (stop, start) = self.switches(dt);
+        if stop + start > 0.0 {
+            start / (stop + start)
+        } else {
+            self.initial
+        }
+    }
+
+    /// Probabilities that "on" ends and that "off" ends within `dt` seconds.
+    fn switches(&self, dt: f64) -> (f64, f64) {
+        let dt = dt.max(0.0);
+        (
+            -(-self.stop_per_s * dt).exp_m1(),
+            -(-self.start_per_s * dt).exp_m1(),
+        )
+    }
+
     /// Probability of "on" after `dt` seconds.
     pub fn predict(&self, p: f64, dt: f64) -> f64 {
-        let dt = dt.max(0.0);
-        let stop = -(-self.stop_per_s * dt).exp_m1();
-        let start = -(-self.start_per_s * dt).exp_m1();
+        let (stop, start) = self.switches(dt);
         (p * (1.0 - stop) + (1.0 - p) * start).clamp(0.0, 1.0)
     }
 }

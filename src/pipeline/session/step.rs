@@ -242,13 +242,13 @@ fn probe_speaking(
     frame_seen: bool,
 ) {
     let Some(loc) = localizer else { return };
-    let positions: Vec<_> = estimates.iter().map(|e| e.position).collect();
-    if let Some(readings) = loc.probe(&positions) {
-        let readings = if frame_seen {
-            readings
-        } else {
-            vec![f64::NAN; positions.len()]
-        };
+    let readings = if frame_seen {
+        let positions: Vec<_> = estimates.iter().map(|e| e.position).collect();
+        loc.probe(&positions)
+    } else {
+        loc.can_probe().then(|| vec![f64::NAN; estimates.len()])
+    };
+    if let Some(readings) = readings {
         speaking.update(estimates, &readings);
     }
 }
