@@ -42,6 +42,20 @@ impl FieldError {
     }
 }
 
+/// Reads a settings document: JSON when the text starts with `{`, else TOML. Absent fields take
+/// the type's serde defaults; an unknown or mistyped field is named by its dotted path.
+pub fn parse_document<T: serde::de::DeserializeOwned>(text: &str) -> Result<T, FieldError> {
+    if text.trim_start().starts_with('{') {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        serde_path_to_error::deserialize(de)
+            .map_err(|e| FieldError::new(e.path().to_string(), e.inner().to_string()))
+    } else {
+        let de = toml::Deserializer::parse(text).map_err(|e| FieldError::new("", e.to_string()))?;
+        serde_path_to_error::deserialize(de)
+            .map_err(|e| FieldError::new(e.path().to_string(), e.inner().message().to_string()))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -57,5 +71,32 @@ mod tests {
         );
         assert!(FieldError::check(true, "x", "m").is_ok());
         assert_eq!(FieldError::check(false, "x", "m").unwrap_err().field, "x");
+    }
+
+    #[derive(Debug, PartialEq, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Doc {
+        #[serde(default)]
+        inner: Inner,
+    }
+
+    #[derive(Debug, Default, PartialEq, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Inner {
+        #[serde(default)]
+        rate: f64,
+    }
+
+    #[test]
+    fn documents_read_as_json_or_toml_and_name_the_bad_field() {
+        let json: Doc = parse_document(" {\"inner\": {\"rate\": 2.5}}").unwrap();
+        let toml: Doc = parse_document("[inner]\nrate = 2.5\n").unwrap();
+        assert_eq!(json, toml);
+        assert_eq!(parse_document::<Doc>("").unwrap().inner.rate, 0.0);
+        let e = parse_document::<Doc>("[inner]\nrate = \"fast\"\n").unwrap_err();
+        assert_eq!(e.field, "inner.rate");
+        let e = parse_document::<Doc>("{\"inner\": {\"speed\": 1}}").unwrap_err();
+        assert_eq!(e.field, "inner.speed");
+        assert!(e.message.contains("unknown field"), "{}", e.message);
     }
 }

@@ -130,17 +130,7 @@ impl PipelineConfig {
     /// Parses a JSON or TOML configuration (TOML unless the text starts with `{`), filling absent
     /// fields with defaults and naming unknown or mistyped fields in the error.
     pub fn parse(text: &str) -> Result<Self, ConfigError> {
-        let cfg: Self = if text.trim_start().starts_with('{') {
-            let de = &mut serde_json::Deserializer::from_str(text);
-            serde_path_to_error::deserialize(de)
-                .map_err(|e| ConfigError::new(e.path().to_string(), e.inner().to_string()))?
-        } else {
-            let de =
-                toml::Deserializer::parse(text).map_err(|e| ConfigError::new("", e.to_string()))?;
-            serde_path_to_error::deserialize(de).map_err(|e| {
-                ConfigError::new(e.path().to_string(), e.inner().message().to_string())
-            })?
-        };
+        let cfg: Self = crate::field_error::parse_document(text)?;
         cfg.validate()?;
         Ok(cfg)
     }

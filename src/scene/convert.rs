@@ -5,7 +5,8 @@ use nalgebra::{Matrix3, Matrix3x4};
 
 use crate::geometry::{Aabb, Camera, GeometryError, Layout, MicArray, Vec3};
 
-use super::format::{ArrayFile, CameraFile, RegionFile, SceneFile};
+use super::format::{ArrayFile, BoxFile, CameraFile, RegionFile, SCENE_FORMAT, SceneFile};
+use super::model::FaceBox;
 
 /// Builds a validated array from its wire form.
 pub fn array_from_file(a: &ArrayFile) -> Result<MicArray, GeometryError> {
@@ -95,6 +96,52 @@ pub fn region_to_file(r: &Aabb) -> RegionFile {
     RegionFile {
         min: r.min.into(),
         max: r.max.into(),
+    }
+}
+
+/// A `scene.json` holding only geometry (no data files), from its wire-form parts.
+pub fn geometry_file(
+    sample_rate: u32,
+    speed_of_sound: f64,
+    arrays: Vec<ArrayFile>,
+    cameras: Vec<CameraFile>,
+    region: Option<RegionFile>,
+) -> SceneFile {
+    SceneFile {
+        format: SCENE_FORMAT.into(),
+        sample_rate,
+        speed_of_sound,
+        audio: None,
+        arrays,
+        cameras,
+        region,
+        detections: None,
+        audio_measurements: None,
+        truth: None,
+    }
+}
+
+/// The wire form of a layout: a `scene.json` holding only geometry (the inverse of
+/// [`layout_from_file`]).
+pub fn layout_to_file(l: &Layout) -> SceneFile {
+    geometry_file(
+        l.sample_rate,
+        l.speed_of_sound,
+        l.arrays.iter().map(array_to_file).collect(),
+        l.cameras.iter().map(camera_to_file).collect(),
+        l.region.as_ref().map(region_to_file),
+    )
+}
+
+/// The wire form of a detected face box.
+pub fn box_to_file(b: &FaceBox) -> BoxFile {
+    BoxFile {
+        x: b.x,
+        y: b.y,
+        w: b.w,
+        h: b.h,
+        score: b.score,
+        point: b.point.map(|p| [p.x, p.y]),
     }
 }
 

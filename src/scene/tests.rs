@@ -257,3 +257,11 @@ fn unknown_fields_are_ignored() {
     });
     assert!(Scene::load(d.path()).is_ok());
 }
+
+#[test]
+fn layout_round_trips_through_its_wire_form() {
+    let s = sample_scene();
+    let file = convert::layout_to_file(&s.layout);
+    assert!(file.audio.is_none() && file.detections.is_none() && file.truth.is_none());
+    assert_eq!(convert::layout_from_file(&file).unwrap(), s.layout);
+}

@@ -8,11 +8,8 @@ use serde::Serialize;
 
 use crate::geometry::deg;
 
-use super::convert::{array_to_file, camera_to_file, region_to_file};
-use super::format::{
-    AudioMeasurementLine, BoxFile, DetectionLine, DoaFile, SCENE_FORMAT, SceneFile, TruthFile,
-    TruthSourceFile,
-};
+use super::convert::{box_to_file, layout_to_file};
+use super::format::{AudioMeasurementLine, DetectionLine, DoaFile, TruthFile, TruthSourceFile};
 use super::{Audio, AudioMeasurementFrame, SampleFormat, Scene, SceneError};
 
 /// Writes `value` as pretty JSON.
@@ -85,18 +82,7 @@ impl Scene {
         std::fs::create_dir_all(dir)
             .map_err(|e| SceneError::new(dir, format!("cannot create folder: {e}")))?;
         let l = &self.layout;
-        let mut file = SceneFile {
-            format: SCENE_FORMAT.to_string(),
-            sample_rate: l.sample_rate,
-            speed_of_sound: l.speed_of_sound,
-            audio: None,
-            arrays: l.arrays.iter().map(array_to_file).collect(),
-            cameras: l.cameras.iter().map(camera_to_file).collect(),
-            region: l.region.as_ref().map(region_to_file),
-            detections: None,
-            audio_measurements: None,
-            truth: None,
-        };
+        let mut file = layout_to_file(l);
         if let Some(a) = &self.audio {
             a.write(&dir.join("audio.wav"), SampleFormat::F32)?;
             file.audio = Some("audio.wav".into());
@@ -107,18 +93,7 @@ impl Scene {
                 w.write(&DetectionLine {
                     t: d.t,
                     camera: l.cameras[d.camera].id.clone(),
-                    boxes: d
-                        .boxes
-                        .iter()
-                        .map(|b| BoxFile {
-                            x: b.x,
-                            y: b.y,
-                            w: b.w,
-                            h: b.h,
-                            score: b.score,
-                            point: b.point.map(|p| [p.x, p.y]),
-                        })
-                        .collect(),
+                    boxes: d.boxes.iter().map(box_to_file).collect(),
                 })?;
             }
             w.finish()?;

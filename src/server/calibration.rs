@@ -8,11 +8,8 @@ use axum::http::{HeaderMap, StatusCode};
 
 use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::{ArrayCalibration, CameraCalibration, SessionInfo};
-use crate::scene::convert::{
-    array_from_file, array_to_file, camera_from_file, camera_to_file, layout_from_file,
-    region_to_file,
-};
-use crate::scene::format::{SCENE_FORMAT, SceneFile};
+use crate::scene::convert::{array_from_file, camera_from_file, layout_from_file, layout_to_file};
+use crate::scene::format::SceneFile;
 
 use super::app::AppState;
 use super::error::{ApiError, JsonBody, parse_json};
@@ -21,19 +18,7 @@ use super::session::SessionHandle;
 
 /// The session's layout in scene-format form, to edit one sensor and rebuild it.
 fn scene_of(s: &SessionHandle) -> SceneFile {
-    let l = s.layout();
-    SceneFile {
-        format: SCENE_FORMAT.into(),
-        sample_rate: l.sample_rate,
-        speed_of_sound: l.speed_of_sound,
-        audio: None,
-        arrays: l.arrays.iter().map(array_to_file).collect(),
-        cameras: l.cameras.iter().map(camera_to_file).collect(),
-        region: l.region.as_ref().map(region_to_file),
-        detections: None,
-        audio_measurements: None,
-        truth: None,
-    }
+    layout_to_file(&s.layout())
 }
 
 fn unknown(kind: &str, id: &str, known: Vec<String>) -> ApiError {

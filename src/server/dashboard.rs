@@ -17,7 +17,8 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use serde::Serialize;
 
-use crate::scene::format::{BoxFile, DetectionLine};
+use crate::scene::convert::box_to_file;
+use crate::scene::format::DetectionLine;
 
 use super::app::AppState;
 use super::demo::DemoAccess;
@@ -142,18 +143,7 @@ async fn detections(
             Some(DetectionLine {
                 t: f.t,
                 camera: layout.cameras.get(f.camera)?.id.clone(),
-                boxes: f
-                    .boxes
-                    .iter()
-                    .map(|b| BoxFile {
-                        x: b.x,
-                        y: b.y,
-                        w: b.w,
-                        h: b.h,
-                        score: b.score,
-                        point: b.point.map(|p| [p.x, p.y]),
-                    })
-                    .collect(),
+                boxes: f.boxes.iter().map(box_to_file).collect(),
             })
         })
         .collect();

@@ -10,8 +10,7 @@ use axum::http::StatusCode;
 
 use crate::pipeline::Pipeline;
 use crate::protocol::rest::{CreateSession, SessionState};
-use crate::scene::convert::layout_from_file;
-use crate::scene::format::{SCENE_FORMAT, SceneFile};
+use crate::scene::convert::{geometry_file, layout_from_file};
 
 use super::auth;
 use super::config::ServerConfig;
@@ -110,18 +109,13 @@ impl Registry {
     /// Building the pipeline takes a while (search grids, filters): call from a blocking task.
     pub fn create(&self, req: CreateSession) -> Result<(SessionHandle, String), ApiError> {
         self.check_capacity()?;
-        let scene = SceneFile {
-            format: SCENE_FORMAT.into(),
-            sample_rate: req.sample_rate,
-            speed_of_sound: req.speed_of_sound,
-            audio: None,
-            arrays: req.arrays,
-            cameras: req.cameras,
-            region: req.region,
-            detections: None,
-            audio_measurements: None,
-            truth: None,
-        };
+        let scene = geometry_file(
+            req.sample_rate,
+            req.speed_of_sound,
+            req.arrays,
+            req.cameras,
+            req.region,
+        );
         let layout = layout_from_file(&scene).map_err(|e| ApiError::geometry(e, ""))?;
         let settings = req.settings.unwrap_or_default();
         let id = auth::new_session_id();

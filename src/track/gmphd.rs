@@ -414,16 +414,7 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
                 sensors: &self.sensors,
                 modes: &self.modes,
             };
-            let birth_scans: Vec<BirthScan> = scans
-                .iter()
-                .zip(&r_u)
-                .map(|(s, a)| BirthScan {
-                    sensor: s.sensor,
-                    z: &s.z,
-                    assoc: a,
-                    activity: s.activity,
-                })
-                .collect();
+            let birth_scans = BirthScan::of_step(&scans, &r_u);
             self.pending = births_from_measurements(&ctx, &birth_scans, &confirmed)
                 .into_iter()
                 .map(|b| b.term)

@@ -5,8 +5,8 @@ use crate::geometry::Layout;
 use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::CreateSession;
 use crate::protocol::{AudioFrame, ClientMessage, SampleEncoding};
-use crate::scene::convert::{array_to_file, camera_to_file, region_to_file};
-use crate::scene::format::{AudioMeasurementLine, BoxFile, DoaFile};
+use crate::scene::convert::{array_to_file, box_to_file, camera_to_file, region_to_file};
+use crate::scene::format::{AudioMeasurementLine, DoaFile};
 use crate::scene::{Audio, Scene};
 
 /// The body that creates a session for `layout` with `settings`.
@@ -58,18 +58,7 @@ pub fn scene_feed(scene: &Scene, block: usize, encoding: SampleEncoding) -> Vec<
             let msg = ClientMessage::Detections {
                 t: d.t,
                 camera: layout.cameras[d.camera].id.clone(),
-                boxes: d
-                    .boxes
-                    .iter()
-                    .map(|b| BoxFile {
-                        x: b.x,
-                        y: b.y,
-                        w: b.w,
-                        h: b.h,
-                        score: b.score,
-                        point: b.point.map(|p| [p.x, p.y]),
-                    })
-                    .collect(),
+                boxes: d.boxes.iter().map(box_to_file).collect(),
             };
             (d.t, serde_json::to_string(&msg).unwrap_or_default())
         })
@@ -165,8 +154,8 @@ mod tests {
     #[test]
     fn layouts_and_feed_messages_cross_the_wire_bit_for_bit() {
         use crate::geometry::{Camera, MicArray, Vec3};
-        use crate::scene::convert::layout_from_file;
-        use crate::scene::format::{SCENE_FORMAT, SceneFile};
+        use crate::scene::convert::{geometry_file, layout_from_file};
+        use crate::scene::format::BoxFile;
         use nalgebra::Matrix3x4;
 
         #[rustfmt::skip]
@@ -186,18 +175,13 @@ mod tests {
         let layout = Layout::new(16_000, 343.0, vec![array], vec![cam], None).unwrap();
         let text = serde_json::to_string(&create_body(&layout, None)).unwrap();
         let body: CreateSession = serde_json::from_str(&text).unwrap();
-        let file = SceneFile {
-            format: SCENE_FORMAT.into(),
-            sample_rate: body.sample_rate,
-            speed_of_sound: body.speed_of_sound,
-            audio: None,
-            arrays: body.arrays,
-            cameras: body.cameras,
-            region: body.region,
-            detections: None,
-            audio_measurements: None,
-            truth: None,
-        };
+        let file = geometry_file(
+            body.sample_rate,
+            body.speed_of_sound,
+            body.arrays,
+            body.cameras,
+            body.region,
+        );
         assert_eq!(layout_from_file(&file).unwrap(), layout);
 
         let sent = ClientMessage::Detections {

@@ -14,6 +14,7 @@ use super::filter::prepare;
 use super::gaussian::Gaussian;
 use super::modes::Modes;
 use super::motion::{position_of, state_of};
+use super::scan::SensorScan;
 use super::sensor::{Observation, Sensor};
 
 mod densities;
@@ -59,6 +60,22 @@ pub(crate) struct BirthScan<'a> {
     pub z: &'a [Vector3<f64>],
     pub assoc: &'a [f64],
     pub activity: Option<f64>,
+}
+
+impl<'a> BirthScan<'a> {
+    /// The step's scans paired with the association probabilities of their measurements.
+    pub fn of_step(scans: &'a [SensorScan], assoc: &'a [Vec<f64>]) -> Vec<Self> {
+        scans
+            .iter()
+            .zip(assoc)
+            .map(|(s, a)| BirthScan {
+                sensor: s.sensor,
+                z: &s.z,
+                assoc: a,
+                activity: s.activity,
+            })
+            .collect()
+    }
 }
 
 /// A measurement-driven birth: the term and its detectability modes (see `modes`).
