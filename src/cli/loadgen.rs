@@ -12,7 +12,9 @@ use super::CliError;
 use crate::protocol::rest::{SessionCreated, SessionMetrics};
 use crate::protocol::{AudioSelection, OutputSelection, SampleEncoding};
 use crate::scene::sim::{PresetOptions, SimConfig, simulate};
-use crate::server::client::{StreamOptions, create_body, http, scene_feed, stream_feed};
+use crate::server::client::{
+    ClientError, Received, StreamOptions, create_body, http, scene_feed, stream_feed,
+};
 
 /// Arguments of `avsep loadgen`.
 #[derive(Debug, Args)]
@@ -192,55 +194,14 @@ async fn run_once(
         .map_err(CliError::runtime)?;
     let cpu = |text: &str| prom_value(text, "avsep_process_cpu_seconds_total").unwrap_or(0.0);
     let rss0 = rss(&before.text());
-    let body = serde_json::to_vec(&create_body(&scene.layout, None)).map_err(CliError::runtime)?;
-    let mut sessions: Vec<SessionCreated> = Vec::new();
-    for _ in 0..n {
-        let r = http(addr, "POST", "/v1/sessions", key, Some(&body))
-            .await
-            .map_err(CliError::runtime)?;
-        if r.status != 201 {
-            return Err(CliError::runtime(format!(
-                "creating a session: HTTP {}: {}",
-                r.status,
-                r.text()
-            )));
-        }
-        sessions.push(r.json().map_err(CliError::runtime)?);
-    }
-    let feed = std::sync::Arc::new(scene_feed(scene, 1024, SampleEncoding::I16));
-    let outputs = OutputSelection {
-        audio: args.audio_out.then_some(AudioSelection {
-            format: SampleEncoding::I16,
-            labels: None,
-        }),
-        ..Default::default()
-    };
-    let opts = StreamOptions {
-        realtime: args.realtime,
-        outputs,
-        timeout: Duration::from_secs_f64(args.seconds * 3.0 + 60.0),
-        ..Default::default()
-    };
+    let sessions = create_sessions(addr, key, scene, n).await?;
     let started = Instant::now();
     let cpu0 = http(addr, "GET", "/metrics", None, None)
         .await
         .map(|m| cpu(&m.text()))
         .unwrap_or(0.0);
     let step = Duration::from_secs_f64(crate::pipeline::PipelineConfig::default().step_s);
-    let mut tasks = Vec::new();
-    for (i, s) in sessions.iter().enumerate() {
-        let url = format!("ws://{addr}{}", s.stream);
-        let (token, feed, opts) = (s.token.clone(), feed.clone(), opts.clone());
-        let delay = if args.lockstep || !args.realtime {
-            Duration::ZERO
-        } else {
-            step.mul_f64(i as f64 / n.max(1) as f64)
-        };
-        tasks.push(tokio::spawn(async move {
-            tokio::time::sleep(delay).await;
-            stream_feed(&url, &token, &feed, &opts).await
-        }));
-    }
+    let tasks = spawn_streams(args, addr, scene, &sessions, step);
     // Sample the server's memory while the streams run.
     let mut peak = rss0;
     let mut all_done = false;
@@ -256,7 +217,7 @@ async fn run_once(
         .await
         .map(|m| cpu(&m.text()))
         .unwrap_or(cpu0);
-    let steps_expected = (args.seconds / 0.128).floor() as usize;
+    let steps_expected = (args.seconds / step.as_secs_f64()).floor() as usize;
     let mut complete = true;
     for t in tasks {
         match t.await {
@@ -264,40 +225,130 @@ async fn run_once(
             _ => complete = false,
         }
     }
-    let (mut p99s, mut rtfs, mut max_ms, mut refused, mut dropped) =
-        (Vec::new(), Vec::new(), 0.0f64, 0, 0);
-    let mut processing_p99 = 0.0f64;
-    for s in &sessions {
+    let m = collect_metrics(addr, key, &sessions).await?;
+    let p99_max = m.p99s.iter().copied().fold(0.0, f64::max);
+    let holds = complete && m.refused == 0 && p99_max < 128.0;
+    Ok(LoadReport {
+        sessions: n,
+        p99_ms_max: p99_max,
+        processing_p99_ms_max: m.processing_p99,
+        server_cores: (cpu1 - cpu0) / wall_s.max(1e-9),
+        p99_ms_median: median(m.p99s),
+        max_ms: m.max_ms,
+        rtf_median: median(m.rtfs),
+        refused: m.refused,
+        output_dropped: m.dropped,
+        mb_per_session: (peak - rss0).max(0.0) / n.max(1) as f64 / 1e6,
+        wall_s,
+        complete,
+        holds_real_time: holds,
+        meets_target: holds && p99_max <= args.target_p99_ms && m.dropped == 0,
+    })
+}
+
+/// Starts streaming the scene to every session, spread over one step unless in lockstep.
+fn spawn_streams(
+    args: &LoadgenArgs,
+    addr: &str,
+    scene: &crate::scene::Scene,
+    sessions: &[SessionCreated],
+    step: Duration,
+) -> Vec<tokio::task::JoinHandle<Result<Received, ClientError>>> {
+    let feed = std::sync::Arc::new(scene_feed(scene, 1024, SampleEncoding::I16));
+    let outputs = OutputSelection {
+        audio: args.audio_out.then_some(AudioSelection {
+            format: SampleEncoding::I16,
+            labels: None,
+        }),
+        ..Default::default()
+    };
+    let opts = StreamOptions {
+        realtime: args.realtime,
+        outputs,
+        timeout: Duration::from_secs_f64(args.seconds * 3.0 + 60.0),
+        ..Default::default()
+    };
+    let n = sessions.len();
+    let mut tasks = Vec::new();
+    for (i, s) in sessions.iter().enumerate() {
+        let url = format!("ws://{addr}{}", s.stream);
+        let (token, feed, opts) = (s.token.clone(), feed.clone(), opts.clone());
+        let delay = if args.lockstep || !args.realtime {
+            Duration::ZERO
+        } else {
+            step.mul_f64(i as f64 / n.max(1) as f64)
+        };
+        tasks.push(tokio::spawn(async move {
+            tokio::time::sleep(delay).await;
+            stream_feed(&url, &token, &feed, &opts).await
+        }));
+    }
+    tasks
+}
+
+/// Creates `n` sessions for the scene's layout.
+async fn create_sessions(
+    addr: &str,
+    key: Option<&str>,
+    scene: &crate::scene::Scene,
+    n: usize,
+) -> Result<Vec<SessionCreated>, CliError> {
+    let body = serde_json::to_vec(&create_body(&scene.layout, None)).map_err(CliError::runtime)?;
+    let mut sessions = Vec::with_capacity(n);
+    for _ in 0..n {
+        let r = http(addr, "POST", "/v1/sessions", key, Some(&body))
+            .await
+            .map_err(CliError::runtime)?;
+        if r.status != 201 {
+            return Err(CliError::runtime(format!(
+                "creating a session: HTTP {}: {}",
+                r.status,
+                r.text()
+            )));
+        }
+        sessions.push(r.json().map_err(CliError::runtime)?);
+    }
+    Ok(sessions)
+}
+
+/// The sessions' own metrics after a run, gathered across them.
+struct Gathered {
+    p99s: Vec<f64>,
+    rtfs: Vec<f64>,
+    processing_p99: f64,
+    max_ms: f64,
+    refused: u64,
+    dropped: u64,
+}
+
+/// Reads every session's metrics, then deletes the session.
+async fn collect_metrics(
+    addr: &str,
+    key: Option<&str>,
+    sessions: &[SessionCreated],
+) -> Result<Gathered, CliError> {
+    let mut g = Gathered {
+        p99s: Vec::new(),
+        rtfs: Vec::new(),
+        processing_p99: 0.0,
+        max_ms: 0.0,
+        refused: 0,
+        dropped: 0,
+    };
+    for s in sessions {
         let path = format!("/v1/sessions/{}/metrics", s.id);
         let r = http(addr, "GET", &path, Some(&s.token), None)
             .await
             .map_err(CliError::runtime)?;
         let m: SessionMetrics = r.json().map_err(CliError::runtime)?;
-        p99s.push(m.step_latency_ms.p99);
-        processing_p99 = processing_p99.max(m.step_processing_ms.p99);
-        rtfs.push(m.real_time_factor);
-        max_ms = max_ms.max(m.step_latency_ms.max);
-        refused += m.refused.values().sum::<u64>();
-        dropped += m.output_dropped;
+        g.p99s.push(m.step_latency_ms.p99);
+        g.processing_p99 = g.processing_p99.max(m.step_processing_ms.p99);
+        g.rtfs.push(m.real_time_factor);
+        g.max_ms = g.max_ms.max(m.step_latency_ms.max);
+        g.refused += m.refused.values().sum::<u64>();
+        g.dropped += m.output_dropped;
         let del = format!("/v1/sessions/{}", s.id);
         let _ = http(addr, "DELETE", &del, Some(key.unwrap_or(&s.token)), None).await;
     }
-    let p99_max = p99s.iter().copied().fold(0.0, f64::max);
-    let holds = complete && refused == 0 && p99_max < 128.0;
-    Ok(LoadReport {
-        sessions: n,
-        p99_ms_max: p99_max,
-        processing_p99_ms_max: processing_p99,
-        server_cores: (cpu1 - cpu0) / wall_s.max(1e-9),
-        p99_ms_median: median(p99s),
-        max_ms,
-        rtf_median: median(rtfs),
-        refused,
-        output_dropped: dropped,
-        mb_per_session: (peak - rss0).max(0.0) / n.max(1) as f64 / 1e6,
-        wall_s,
-        complete,
-        holds_real_time: holds,
-        meets_target: holds && p99_max <= args.target_p99_ms && dropped == 0,
-    })
+    Ok(g)
 }

@@ -95,6 +95,70 @@ fn valid(d: f64, gate: f64) -> bool {
     d.is_finite() && d <= gate
 }
 
+/// The previous frame's correspondences still present and within the gate, marking their
+/// objects and estimates used.
+fn keep_previous(
+    f: &MotFrame,
+    prev: &[Match],
+    gate: f64,
+    truth_used: &mut [bool],
+    est_used: &mut [bool],
+) -> Vec<Match> {
+    let mut kept = Vec::new();
+    for m in prev {
+        let i = f.truth.iter().position(|&t| t == m.truth);
+        let j = f.est.iter().position(|&e| e == m.est);
+        if let (Some(i), Some(j)) = (i, j) {
+            let d = f.dist.at(i, j);
+            if valid(d, gate) {
+                truth_used[i] = true;
+                est_used[j] = true;
+                kept.push(Match {
+                    truth: m.truth,
+                    est: m.est,
+                    dist: d,
+                });
+            }
+        }
+    }
+    kept
+}
+
+/// Matches among the objects and estimates not yet used: most gated pairs first, then the least
+/// total distance; marks the matched ones used.
+fn match_free(
+    f: &MotFrame,
+    gate: f64,
+    truth_used: &mut [bool],
+    est_used: &mut [bool],
+) -> Vec<Match> {
+    let free_t: Vec<usize> = (0..truth_used.len()).filter(|&i| !truth_used[i]).collect();
+    let free_e: Vec<usize> = (0..est_used.len()).filter(|&j| !est_used[j]).collect();
+    // A forbidden pair costs more than any set of allowed ones, so the assignment first
+    // maximises the number of gated matches and then minimises their total distance.
+    let forbidden = gate.abs() * (free_t.len().min(free_e.len()) as f64 + 1.0) + 1.0;
+    let costs = CostMatrix::from_fn(free_t.len(), free_e.len(), |a, b| {
+        let d = f.dist.at(free_t[a], free_e[b]);
+        if valid(d, gate) { d } else { forbidden }
+    });
+    let mut found = Vec::new();
+    for (a, b) in assign(&costs).pairs {
+        let (i, j) = (free_t[a], free_e[b]);
+        let d = f.dist.at(i, j);
+        if !valid(d, gate) {
+            continue;
+        }
+        truth_used[i] = true;
+        est_used[j] = true;
+        found.push(Match {
+            truth: f.truth[i],
+            est: f.est[j],
+            dist: d,
+        });
+    }
+    found
+}
+
 /// Scores `frames` with distance gate `gate`: previous-frame correspondences that are still
 /// within the gate are kept, the rest are matched by minimum total distance among the pairs
 /// within the gate (most matches first), and a new match of an object to an estimate other than
@@ -109,49 +173,12 @@ pub fn clear_mot(frames: &[MotFrame], gate: f64) -> MotResult {
         let (nt, ne) = (f.truth.len(), f.est.len());
         let mut truth_used = vec![false; nt];
         let mut est_used = vec![false; ne];
-        let mut matches = Vec::new();
-        for m in &prev {
-            let i = f.truth.iter().position(|&t| t == m.truth);
-            let j = f.est.iter().position(|&e| e == m.est);
-            if let (Some(i), Some(j)) = (i, j) {
-                let d = f.dist.at(i, j);
-                if valid(d, gate) {
-                    truth_used[i] = true;
-                    est_used[j] = true;
-                    matches.push(Match {
-                        truth: m.truth,
-                        est: m.est,
-                        dist: d,
-                    });
-                }
-            }
-        }
-        let free_t: Vec<usize> = (0..nt).filter(|&i| !truth_used[i]).collect();
-        let free_e: Vec<usize> = (0..ne).filter(|&j| !est_used[j]).collect();
-        // A forbidden pair costs more than any set of allowed ones, so the assignment first
-        // maximises the number of gated matches and then minimises their total distance.
-        let forbidden = gate.abs() * (free_t.len().min(free_e.len()) as f64 + 1.0) + 1.0;
-        let costs = CostMatrix::from_fn(free_t.len(), free_e.len(), |a, b| {
-            let d = f.dist.at(free_t[a], free_e[b]);
-            if valid(d, gate) { d } else { forbidden }
-        });
-        for (a, b) in assign(&costs).pairs {
-            let (i, j) = (free_t[a], free_e[b]);
-            let d = f.dist.at(i, j);
-            if !valid(d, gate) {
-                continue;
-            }
-            let (o, h) = (f.truth[i], f.est[j]);
-            if last_match.get(&o).is_some_and(|&old| old != h) {
+        let mut matches = keep_previous(f, &prev, gate, &mut truth_used, &mut est_used);
+        for m in match_free(f, gate, &mut truth_used, &mut est_used) {
+            if last_match.get(&m.truth).is_some_and(|&old| old != m.est) {
                 r.switches += 1;
             }
-            truth_used[i] = true;
-            est_used[j] = true;
-            matches.push(Match {
-                truth: o,
-                est: h,
-                dist: d,
-            });
+            matches.push(m);
         }
         for m in &matches {
             last_match.insert(m.truth, m.est);

@@ -240,6 +240,48 @@ impl<const N: usize> GmphdTracker<N> {
         let est: Vec<usize> = (0..self.comps.len())
             .filter(|&i| self.comps[i].w > cfg.extraction_threshold)
             .collect();
+        let mut labels = self.match_previous(&est, f);
+        for c in &mut self.coasting {
+            c.1 = f * c.1;
+            c.2 += 1;
+        }
+        self.label_unmatched(&est, &mut labels, k);
+        let current: Vec<(Label, SVector<f64, N>)> = est
+            .iter()
+            .zip(&labels)
+            .filter_map(|(&i, l)| l.map(|l| (l, self.comps[i].g.mean)))
+            .collect();
+        for (l, x) in &self.previous {
+            if !current.iter().any(|c| c.0 == *l) {
+                self.coasting.push((*l, *x, 0));
+            }
+        }
+        self.coasting
+            .retain(|c| c.2 <= cfg.label_coast_steps && !current.iter().any(|x| x.0 == c.0));
+        for (&i, l) in est.iter().zip(&labels) {
+            if let Some(l) = l {
+                self.comps[i].tags = vec![(Tag::Label(*l), 1.0)];
+            }
+        }
+        for (i, c) in self.comps.iter_mut().enumerate() {
+            if !est.contains(&i)
+                && let Some(t) = c.dominant()
+            {
+                c.tags = vec![(t, 1.0)];
+            }
+        }
+        self.previous = current;
+        est
+    }
+
+    /// Steps 4-5: the estimates `est` matched one to one with the previous step's labels
+    /// (predicted by `f`), each pair within the gate and carrying that label among its tags.
+    fn match_previous(
+        &self,
+        est: &[usize],
+        f: &nalgebra::SMatrix<f64, N, N>,
+    ) -> Vec<Option<Label>> {
+        let cfg = &self.cfg.gmphd;
         let predicted: Vec<(Label, SVector<f64, N>)> =
             self.previous.iter().map(|(l, x)| (*l, f * x)).collect();
         // Infeasible pairs cost more than any feasible set of matches.
@@ -271,10 +313,13 @@ impl<const N: usize> GmphdTracker<N> {
                 labels[i] = Some(predicted[j].0);
             }
         }
-        for c in &mut self.coasting {
-            c.1 = f * c.1;
-            c.2 += 1;
-        }
+        labels
+    }
+
+    /// Steps 6-7: an unmatched estimate keeps its dominant label if no other took it, else
+    /// takes the nearest coasting label within the gate, else a fresh label of step `k`.
+    fn label_unmatched(&self, est: &[usize], labels: &mut [Option<Label>], k: u64) {
+        let cfg = &self.cfg.gmphd;
         let mut fresh = 0u32;
         for i in 0..est.len() {
             if labels[i].is_some() {
@@ -306,32 +351,6 @@ impl<const N: usize> GmphdTracker<N> {
             };
             labels[i] = Some(label);
         }
-        let current: Vec<(Label, SVector<f64, N>)> = est
-            .iter()
-            .zip(&labels)
-            .filter_map(|(&i, l)| l.map(|l| (l, self.comps[i].g.mean)))
-            .collect();
-        for (l, x) in &self.previous {
-            if !current.iter().any(|c| c.0 == *l) {
-                self.coasting.push((*l, *x, 0));
-            }
-        }
-        self.coasting
-            .retain(|c| c.2 <= cfg.label_coast_steps && !current.iter().any(|x| x.0 == c.0));
-        for (&i, l) in est.iter().zip(&labels) {
-            if let Some(l) = l {
-                self.comps[i].tags = vec![(Tag::Label(*l), 1.0)];
-            }
-        }
-        for (i, c) in self.comps.iter_mut().enumerate() {
-            if !est.contains(&i)
-                && let Some(t) = c.dominant()
-            {
-                c.tags = vec![(t, 1.0)];
-            }
-        }
-        self.previous = current;
-        est
     }
 }
 

@@ -45,6 +45,16 @@ fn non_negative(v: f64, field: &str) -> Result<(), ConfigError> {
 impl TrackerConfig {
     /// Checks every field; the error names the first offending one.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        self.validate_motion()?;
+        probability_open(self.survival_probability, "survival_probability")?;
+        self.validate_sensors()?;
+        self.validate_filters()?;
+        self.validate_birth()?;
+        self.validate_modes()
+    }
+
+    /// The motion model.
+    fn validate_motion(&self) -> Result<(), ConfigError> {
         let m = &self.motion;
         positive(m.beta_per_s, "motion.beta_per_s")?;
         positive(m.nu_m_per_s, "motion.nu_m_per_s")?;
@@ -54,7 +64,11 @@ impl TrackerConfig {
         for (i, s) in m.accel_std_m_per_s2.iter().enumerate() {
             non_negative(*s, &format!("motion.accel_std_m_per_s2[{i}]"))?;
         }
-        probability_open(self.survival_probability, "survival_probability")?;
+        Ok(())
+    }
+
+    /// The audio and camera sensor models.
+    fn validate_sensors(&self) -> Result<(), ConfigError> {
         let a = &self.audio_position;
         positive(a.noise_std_m, "audio_position.noise_std_m")?;
         detect_probability(a.p_detect, "audio_position.p_detect")?;
@@ -78,6 +92,11 @@ impl TrackerConfig {
         for (i, s) in c.occluder_half_size_m.iter().enumerate() {
             positive(*s, &format!("camera.occluder_half_size_m[{i}]"))?;
         }
+        Ok(())
+    }
+
+    /// The filters and the two trackers' hypothesis management.
+    fn validate_filters(&self) -> Result<(), ConfigError> {
         positive(self.ukf.alpha, "ukf.alpha")?;
         non_negative(self.ukf.beta, "ukf.beta")?;
         non_negative(self.ukf.kappa, "ukf.kappa")?;
@@ -100,7 +119,21 @@ impl TrackerConfig {
             "must be between 1 and 1000000",
         )?;
         probability_open(g.prune_threshold, "glmb.prune_threshold")?;
-        self.validate_birth()?;
+        let p = &self.gmphd;
+        probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
+        positive(p.merge_threshold, "gmphd.merge_threshold")?;
+        ConfigError::check(
+            (1..=100_000).contains(&p.max_components),
+            "gmphd.max_components",
+            "must be between 1 and 100000",
+        )?;
+        positive(p.extraction_threshold, "gmphd.extraction_threshold")?;
+        positive(p.label_gate_m, "gmphd.label_gate_m")?;
+        Ok(())
+    }
+
+    /// The talking and facing modes, the estimator and the speaking smoothing.
+    fn validate_modes(&self) -> Result<(), ConfigError> {
         let v = &self.voice;
         positive(v.mean_talk_s, "voice.mean_talk_s")?;
         positive(v.mean_pause_s, "voice.mean_pause_s")?;
@@ -124,16 +157,6 @@ impl TrackerConfig {
             "speaking_smoothing",
             "must be in (0, 1]",
         )?;
-        let p = &self.gmphd;
-        probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
-        positive(p.merge_threshold, "gmphd.merge_threshold")?;
-        ConfigError::check(
-            (1..=100_000).contains(&p.max_components),
-            "gmphd.max_components",
-            "must be between 1 and 100000",
-        )?;
-        positive(p.extraction_threshold, "gmphd.extraction_threshold")?;
-        positive(p.label_gate_m, "gmphd.label_gate_m")?;
         Ok(())
     }
 

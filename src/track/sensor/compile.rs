@@ -47,6 +47,30 @@ struct Detection {
     audio: bool,
 }
 
+impl Detection {
+    /// The settings of an audio sensor.
+    fn audio(p_detect: f64, min_p_detect: f64, clutter_rate: f64, filter: FilterKind) -> Self {
+        Self {
+            p_detect,
+            min_p_detect,
+            clutter_rate,
+            filter,
+            audio: true,
+        }
+    }
+
+    /// The settings of a camera or generic sensor (never talking-dependent).
+    fn other(p_detect: f64, clutter_rate: f64, filter: FilterKind) -> Self {
+        Self {
+            p_detect,
+            min_p_detect: 0.0,
+            clutter_rate,
+            filter,
+            audio: false,
+        }
+    }
+}
+
 impl<const N: usize> Sensor<N> {
     /// Validates a sensor model and prepares it for a state of dimension N.
     pub fn compile(
@@ -63,103 +87,7 @@ impl<const N: usize> Sensor<N> {
             ));
         }
         let mut r = Matrix3::identity();
-        let (observed, det) = match model {
-            SensorModel::AudioPosition {
-                noise_std_m,
-                p_detect,
-                min_p_detect,
-                clutter_rate,
-                clutter_volume_m3,
-            } => {
-                check_positive(*noise_std_m, index, "noise_std_m")?;
-                check_positive(*clutter_volume_m3, index, "clutter_volume_m3")?;
-                r *= noise_std_m * noise_std_m;
-                let observed = Observed {
-                    obs: Observation::Position,
-                    dim: 3,
-                    log_density: -clutter_volume_m3.ln(),
-                };
-                let det = Detection {
-                    p_detect: *p_detect,
-                    min_p_detect: *min_p_detect,
-                    clutter_rate: *clutter_rate,
-                    filter: FilterKind::Ekf,
-                    audio: true,
-                };
-                (observed, det)
-            }
-            SensorModel::AudioDirection {
-                origin,
-                noise_std_rad,
-                uses_elevation,
-                cone_axis,
-                p_detect,
-                min_p_detect,
-                clutter_rate,
-                filter,
-            } => {
-                let observed = direction(
-                    index,
-                    origin,
-                    *noise_std_rad,
-                    *uses_elevation,
-                    cone_axis.as_ref(),
-                    &mut r,
-                )?;
-                let det = Detection {
-                    p_detect: *p_detect,
-                    min_p_detect: *min_p_detect,
-                    clutter_rate: *clutter_rate,
-                    filter: *filter,
-                    audio: true,
-                };
-                (observed, det)
-            }
-            SensorModel::CameraPoint {
-                camera,
-                noise_std_px,
-                p_detect,
-                clutter_rate,
-                filter,
-                face_size_m,
-                face_size_log_std,
-            } => {
-                let observed = camera_point(
-                    index,
-                    camera,
-                    *noise_std_px,
-                    *face_size_m,
-                    *face_size_log_std,
-                    &mut r,
-                )?;
-                let det = Detection {
-                    p_detect: *p_detect,
-                    min_p_detect: 0.0,
-                    clutter_rate: *clutter_rate,
-                    filter: *filter,
-                    audio: false,
-                };
-                (observed, det)
-            }
-            SensorModel::GenericPoint {
-                h,
-                r: noise,
-                p_detect,
-                clutter_rate,
-                clutter_density,
-            } => {
-                check_positive(*clutter_density, index, "clutter_density")?;
-                let observed = linear(index, h, noise, *clutter_density, &mut r)?;
-                let det = Detection {
-                    p_detect: *p_detect,
-                    min_p_detect: 0.0,
-                    clutter_rate: *clutter_rate,
-                    filter: FilterKind::Ekf,
-                    audio: false,
-                };
-                (observed, det)
-            }
-        };
+        let (observed, det) = observation_model(model, index, &mut r)?;
         check_probability(det.p_detect, index, "p_detect")?;
         check_probability(det.min_p_detect, index, "min_p_detect")?;
         check_positive(det.clutter_rate, index, "clutter_rate")?;
@@ -184,6 +112,92 @@ impl<const N: usize> Sensor<N> {
             birth_gate: chi_square_quantile(cfg.birth.suppress_gate_probability, dim),
         })
     }
+}
+
+/// What a sensor kind observes (writing its noise covariance into `r`) and its detection
+/// settings, with the kind's own fields checked.
+fn observation_model<const N: usize>(
+    model: &SensorModel,
+    index: usize,
+    r: &mut Matrix3<f64>,
+) -> Result<(Observed<N>, Detection), ConfigError> {
+    Ok(match model {
+        SensorModel::AudioPosition {
+            noise_std_m,
+            p_detect,
+            min_p_detect,
+            clutter_rate,
+            clutter_volume_m3,
+        } => {
+            check_positive(*noise_std_m, index, "noise_std_m")?;
+            check_positive(*clutter_volume_m3, index, "clutter_volume_m3")?;
+            *r *= noise_std_m * noise_std_m;
+            let observed = Observed {
+                obs: Observation::Position,
+                dim: 3,
+                log_density: -clutter_volume_m3.ln(),
+            };
+            let det = Detection::audio(*p_detect, *min_p_detect, *clutter_rate, FilterKind::Ekf);
+            (observed, det)
+        }
+        SensorModel::AudioDirection {
+            origin,
+            noise_std_rad,
+            uses_elevation,
+            cone_axis,
+            p_detect,
+            min_p_detect,
+            clutter_rate,
+            filter,
+        } => {
+            let observed = direction(
+                index,
+                origin,
+                *noise_std_rad,
+                *uses_elevation,
+                cone_axis.as_ref(),
+                r,
+            )?;
+            let det = Detection::audio(*p_detect, *min_p_detect, *clutter_rate, *filter);
+            (observed, det)
+        }
+        SensorModel::CameraPoint {
+            camera,
+            noise_std_px,
+            p_detect,
+            clutter_rate,
+            filter,
+            face_size_m,
+            face_size_log_std,
+        } => {
+            let observed = camera_point(
+                index,
+                camera,
+                *noise_std_px,
+                *face_size_m,
+                *face_size_log_std,
+                r,
+            )?;
+            (
+                observed,
+                Detection::other(*p_detect, *clutter_rate, *filter),
+            )
+        }
+        SensorModel::GenericPoint {
+            h,
+            r: noise,
+            p_detect,
+            clutter_rate,
+            clutter_density,
+        } => {
+            check_positive(*clutter_density, index, "clutter_density")?;
+            let observed = linear(index, h, noise, *clutter_density, r)?;
+            (
+                observed,
+                Detection::other(*p_detect, *clutter_rate, FilterKind::Ekf),
+            )
+        }
+    })
 }
 
 /// An array's direction: a cone angle about `cone_axis` (a linear array), or azimuth with or

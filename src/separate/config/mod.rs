@@ -391,30 +391,6 @@ impl Default for SeparatorConfig {
     }
 }
 
-fn in_range(field: &str, v: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
-    if v.is_finite() && v >= lo && v <= hi {
-        Ok(())
-    } else {
-        Err(ConfigError::new(
-            field,
-            format!("must be a number in [{lo}, {hi}], got {v}"),
-        ))
-    }
-}
-
-/// Checks a pair of thresholds `{prefix}_low` < `{prefix}_high`, both in [0, 1].
-fn unit_interval(prefix: &str, low: f64, high: f64) -> Result<(), ConfigError> {
-    in_range(&format!("{prefix}_low"), low, 0.0, 1.0)?;
-    in_range(&format!("{prefix}_high"), high, 0.0, 1.0)?;
-    if high <= low {
-        return Err(ConfigError::new(
-            format!("{prefix}_high"),
-            format!("must be above {prefix}_low"),
-        ));
-    }
-    Ok(())
-}
-
 impl SeparatorConfig {
     /// The STFT geometry the separator expects.
     pub fn frame_geometry(&self) -> FrameGeometry {
@@ -423,135 +399,9 @@ impl SeparatorConfig {
             hop: self.hop,
         }
     }
-
-    /// Checks every field; the error names the first bad one.
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        self.frame_geometry()
-            .validate(true)
-            .map_err(|m| ConfigError::new("frame", m))?;
-        in_range("min_frequency_hz", self.min_frequency_hz, 0.0, 1e6)?;
-        if let Some(f) = self.max_frequency_hz {
-            in_range("max_frequency_hz", f, 0.0, 1e6)?;
-            if f <= self.min_frequency_hz {
-                return Err(ConfigError::new(
-                    "max_frequency_hz",
-                    "must be above min_frequency_hz",
-                ));
-            }
-        }
-        in_range("null_loading", self.null_loading, 1e-9, 1e3)?;
-        in_range(
-            "steering_tolerance_rad",
-            self.steering_tolerance_rad,
-            0.0,
-            1.0,
-        )?;
-        let r = &self.rls;
-        in_range("rls.forgetting", r.forgetting, 0.5, 1.0 - 1e-9)?;
-        in_range("rls.init_regularisation", r.init_regularisation, 1e-9, 1e6)?;
-        in_range("rls.leakage", r.leakage, 0.0, 1e3)?;
-        in_range("rls.max_norm_ratio", r.max_norm_ratio, 0.0, 1e6)?;
-        if !(1..=8).contains(&r.update_every) {
-            return Err(ConfigError::new(
-                "rls.update_every",
-                format!("{} is outside 1..=8", r.update_every),
-            ));
-        }
-        in_range("mvdr.forgetting", self.mvdr.forgetting, 0.5, 1.0 - 1e-9)?;
-        in_range("mvdr.loading", self.mvdr.loading, 1e-9, 1e3)?;
-        let a = &self.adaptation;
-        unit_interval("adaptation.presence", a.presence_low, a.presence_high)?;
-        in_range("adaptation.power_smoothing", a.power_smoothing, 0.0, 0.999)?;
-        unit_interval("adaptation.dominance", a.dominance_low, a.dominance_high)?;
-        let p = &self.post_filter;
-        in_range("post_filter.gain_floor", p.gain_floor, 0.0, 1.0)?;
-        in_range("post_filter.power_smoothing", p.power_smoothing, 0.0, 0.999)?;
-        in_range("post_filter.exponent", p.exponent, 0.1, 10.0)?;
-        in_range("post_filter.mask_threshold", p.mask_threshold, 1e-3, 1e3)?;
-        in_range(
-            "post_filter.untracked_weight",
-            p.untracked_weight,
-            0.0,
-            100.0,
-        )?;
-        in_range(
-            "post_filter.untracked_margin",
-            p.untracked_margin,
-            1.0,
-            1000.0,
-        )?;
-        in_range(
-            "post_filter.noise_rise_db_per_s",
-            p.noise_rise_db_per_s,
-            0.01,
-            100.0,
-        )?;
-        in_range("post_filter.presence_floor", p.presence_floor, 1e-3, 1.0)?;
-        let h = &p.harmonic;
-        in_range("post_filter.harmonic.boost", h.boost, 0.0, 1e4)?;
-        in_range(
-            "post_filter.harmonic.leakage_exponent",
-            h.leakage_exponent,
-            0.01,
-            10.0,
-        )?;
-        in_range(
-            "post_filter.harmonic.ownership_exponent",
-            h.ownership_exponent,
-            0.0,
-            10.0,
-        )?;
-        in_range(
-            "post_filter.harmonic.spatial_discount",
-            h.spatial_discount,
-            0.0,
-            1.0,
-        )?;
-        in_range("post_filter.harmonic.f0_min_hz", h.f0_min_hz, 20.0, 2000.0)?;
-        in_range(
-            "post_filter.harmonic.f0_max_hz",
-            h.f0_max_hz,
-            h.f0_min_hz,
-            2000.0,
-        )?;
-        in_range(
-            "post_filter.harmonic.max_frequency_hz",
-            h.max_frequency_hz,
-            h.f0_max_hz,
-            1e6,
-        )?;
-        in_range("post_filter.harmonic.voicing_low", h.voicing_low, -1.0, 1.0)?;
-        if !(h.voicing_high > h.voicing_low && h.voicing_high <= 1.0) {
-            return Err(ConfigError::new(
-                "post_filter.harmonic.voicing_high",
-                "must be above voicing_low and at most 1",
-            ));
-        }
-        in_range(
-            "post_filter.harmonic.register_semitones",
-            h.register_semitones,
-            0.0,
-            48.0,
-        )?;
-        in_range(
-            "post_filter.harmonic.register_memory_s",
-            h.register_memory_s,
-            0.01,
-            3600.0,
-        )?;
-        in_range(
-            "post_filter.harmonic.register_confidence_s",
-            h.register_confidence_s,
-            0.001,
-            3600.0,
-        )?;
-        let l = &self.lifecycle;
-        in_range("lifecycle.fade_in_s", l.fade_in_s, 0.0, 10.0)?;
-        in_range("lifecycle.grace_s", l.grace_s, 0.0, 60.0)?;
-        in_range("lifecycle.fade_out_s", l.fade_out_s, 0.0, 10.0)?;
-        Ok(())
-    }
 }
+
+mod validate;
 
 #[cfg(test)]
 mod tests {
@@ -594,5 +444,29 @@ mod tests {
             ..SeparatorConfig::default()
         };
         assert_eq!(c.validate().unwrap_err().field, "max_frequency_hz");
+    }
+
+    #[test]
+    fn each_section_is_named_in_its_errors() {
+        let field = |edit: fn(&mut SeparatorConfig)| {
+            let mut c = SeparatorConfig::default();
+            edit(&mut c);
+            c.validate().unwrap_err().field
+        };
+        assert_eq!(field(|c| c.rls.update_every = 9), "rls.update_every");
+        assert_eq!(field(|c| c.mvdr.loading = 0.0), "mvdr.loading");
+        assert_eq!(
+            field(|c| c.post_filter.presence_floor = 0.0),
+            "post_filter.presence_floor"
+        );
+        assert_eq!(
+            field(|c| c.post_filter.harmonic.voicing_high = 0.1),
+            "post_filter.harmonic.voicing_high"
+        );
+        assert_eq!(
+            field(|c| c.post_filter.harmonic.f0_max_hz = 50.0),
+            "post_filter.harmonic.f0_max_hz"
+        );
+        assert_eq!(field(|c| c.lifecycle.grace_s = -1.0), "lifecycle.grace_s");
     }
 }

@@ -1,0 +1,315 @@
+//! Tests of the harmonic grouping: F0 search, register, ownership, regrouping and leakage.
+
+use super::*;
+use crate::dsp::hann_periodic;
+
+const FS: f64 = 16000.0;
+const N: usize = 1024;
+
+fn harmonic() -> Harmonic {
+    Harmonic::new(
+        &HarmonicConfig::default(),
+        FS / N as f64,
+        FS / (N / 2) as f64,
+    )
+}
+
+/// Magnitude spectrum of one Hann-windowed frame of `x`.
+fn spectrum(x: &[f64]) -> Vec<f64> {
+    let w = hann_periodic(N);
+    (0..=N / 2)
+        .map(|k| {
+            let mut acc = Complex::new(0.0, 0.0);
+            for (t, (v, w)) in x.iter().zip(&w).enumerate() {
+                let ph = -std::f64::consts::TAU * (k * t) as f64 / N as f64;
+                acc += Complex::from_polar(v * w, ph);
+            }
+            acc.norm()
+        })
+        .collect()
+}
+
+/// The next value in [-0.5, 0.5) of a linear congruential generator seeded with `s`.
+fn uniform(s: &mut u64) -> f64 {
+    *s = s
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    (*s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+}
+
+fn voiced(f0: f64, amp: f64) -> Vec<f64> {
+    (0..N)
+        .map(|t| {
+            let t = t as f64 / FS;
+            (1..40)
+                .filter(|&h| f64::from(h) * f0 < 4000.0)
+                .map(|h| {
+                    let h = f64::from(h);
+                    amp / h * (std::f64::consts::TAU * h * f0 * t + h).sin()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+#[test]
+fn coarse_to_fine_search_finds_the_exhaustive_searchs_pitch() {
+    let h = harmonic();
+    let rel: Vec<f64> = (0..=N / 2)
+        .map(|k| (k as f64 * FS / N as f64 / 1000.0).clamp(0.0, 1.0))
+        .collect();
+    let (mut cases, mut same) = (0, 0);
+    // Single talkers and two-talker mixtures over the F0 range, the second talker 0-12 dB
+    // below the first, with noise.
+    let mut s = 11u64;
+    for i in 0..40 {
+        let f1 = 75.0 * (1.0f64 + 0.043 * i as f64);
+        let f2 = 310.0 / (1.0f64 + 0.031 * i as f64);
+        let a2 = [0.0, 1.0, 0.5, 0.25][i % 4];
+        let x: Vec<f64> = voiced(f1, 1.0)
+            .iter()
+            .zip(voiced(f2, a2))
+            .map(|(a, b)| a + b + 0.05 * uniform(&mut s))
+            .collect();
+        let mag = spectrum(&x);
+        let (p, q) = (
+            h.pitch(&mag, &rel, &Register::default(), &mut Vec::new()),
+            h.pitch_exhaustive(&mag, &rel),
+        );
+        cases += 1;
+        same += usize::from(p == q);
+        // Where they differ, the coarse search found a comb nearly as good.
+        assert!(
+            p.voicing >= q.voicing - 0.05,
+            "{f1} {f2} {a2}: {p:?} vs {q:?}"
+        );
+    }
+    assert!(same * 10 >= cases * 9, "{same} of {cases} the same");
+}
+
+#[test]
+fn register_learns_a_labels_f0_and_keeps_it_through_a_neighbours_leak() {
+    let h = harmonic();
+    let rel = vec![1.0; N / 2 + 1];
+    // Half a second of the label's own voice at 104 Hz; then its output carries a
+    // neighbour's leak as strong as its own voice, whose comb a fresh search prefers.
+    let own = spectrum(&voiced(104.0, 1.0));
+    let mut reg = Register::default();
+    for _ in 0..16 {
+        let p = h.pitch(&own, &rel, &reg, &mut Vec::new());
+        assert!((p.f0 / 104.0 - 1.0).abs() < 0.01, "{}", p.f0);
+        h.observe(&mut reg, &p, 1.0);
+    }
+    assert!((reg.log_f0 - 104f64.ln()).abs() < 0.01, "{reg:?}");
+    for neighbour in [131.0, 171.0, 250.0, 280.0] {
+        let mixed: Vec<f64> = voiced(104.0, 1.0)
+            .iter()
+            .zip(voiced(neighbour, 1.0))
+            .map(|(a, b)| a + b)
+            .collect();
+        let mag = spectrum(&mixed);
+        let fresh = h.pitch(&mag, &rel, &Register::default(), &mut Vec::new());
+        assert!((fresh.f0 / neighbour - 1.0).abs() < 0.01, "{}", fresh.f0);
+        let held = h.pitch(&mag, &rel, &reg, &mut Vec::new());
+        assert!((held.f0 / 104.0 - 1.0).abs() < 0.01, "{}", held.f0);
+    }
+    // Without evidence the register forgets: after its memory (5 s) it has lost most of
+    // its weight, and unvoiced frames do not move its mean.
+    let before = reg;
+    for _ in 0..(5 * 31) {
+        h.observe(&mut reg, &Pitch::default(), 0.0);
+    }
+    assert_eq!(reg.log_f0, before.log_f0);
+    assert!(reg.weight < 0.4 * before.weight, "{reg:?} from {before:?}");
+    // A talker who moves out of the register is still followed: a 150 Hz voice alone is
+    // read as 150 Hz against a register at 104 Hz (an octave out, the search settles on
+    // the subharmonic inside the register, whose comb still covers the talker's bins).
+    let far = h.pitch(
+        &spectrum(&voiced(150.0, 1.0)),
+        &rel,
+        &before,
+        &mut Vec::new(),
+    );
+    assert!((far.f0 / 150.0 - 1.0).abs() < 0.01, "{}", far.f0);
+}
+
+#[test]
+fn register_off_leaves_the_search_alone() {
+    let cfg = HarmonicConfig {
+        register_semitones: 0.0,
+        ..HarmonicConfig::default()
+    };
+    let h = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+    let rel = vec![1.0; N / 2 + 1];
+    let mut reg = Register::default();
+    for _ in 0..32 {
+        h.observe(
+            &mut reg,
+            &Pitch {
+                f0: 104.0,
+                voicing: 1.0,
+                salience: 1.0,
+            },
+            1.0,
+        );
+    }
+    let mag = spectrum(&voiced(212.0, 1.0));
+    let a = h.pitch(&mag, &rel, &reg, &mut Vec::new());
+    let b = h.pitch(&mag, &rel, &Register::default(), &mut Vec::new());
+    assert_eq!(a, b);
+}
+
+#[test]
+fn f0_of_a_harmonic_signal_is_found_from_its_upper_band() {
+    let h = harmonic();
+    for f0 in [97.0, 133.0, 210.0, 287.0] {
+        let mag = spectrum(&voiced(f0, 1.0));
+        // Only 500 Hz and up are reliable: the fundamental and the low harmonics are not read.
+        let rel: Vec<f64> = (0..mag.len())
+            .map(|k| f64::from(u8::from(k as f64 * FS / N as f64 >= 500.0)))
+            .collect();
+        let p = h.pitch(&mag, &rel, &Register::default(), &mut Vec::new());
+        assert!((p.f0 / f0 - 1.0).abs() < 0.01, "{f0}: {}", p.f0);
+        assert!(p.voicing > 0.9, "{f0}: voicing {}", p.voicing);
+        // The same harmonics leaking at a tenth into another label are not that label's.
+        let leak: Vec<f64> = mag.iter().map(|m| 0.1 * m).collect();
+        let q = h.pitch(&leak, &rel, &Register::default(), &mut Vec::new());
+        let mut own = [0.0; 2];
+        h.ownership(&[p, q], &mut own);
+        assert!(own[0] > 0.9 && own[1] < 0.02, "{own:?}");
+    }
+    // Noise has no pitch: one frame in ten may pass a lucky comb, weakly.
+    let mut s = 7u64;
+    let mut voicing: Vec<f64> = (0..50)
+        .map(|_| {
+            let noise: Vec<f64> = (0..N).map(|_| uniform(&mut s)).collect();
+            h.pitch(
+                &spectrum(&noise),
+                &vec![1.0; N / 2 + 1],
+                &Register::default(),
+                &mut Vec::new(),
+            )
+            .voicing
+        })
+        .collect();
+    voicing.sort_by(f64::total_cmp);
+    assert!(voicing[25] < 0.05, "median noise voicing {}", voicing[25]);
+    assert!(
+        voicing[45] < 0.25,
+        "90th percentile noise voicing {}",
+        voicing[45]
+    );
+}
+
+#[test]
+fn a_subharmonic_leak_does_not_own_the_louder_labels_harmonics() {
+    let h = harmonic();
+    // A talker at 220 Hz; its leak into a silent neighbour's output reads as 110 Hz, whose
+    // comb passes through every harmonic of 220 Hz (and between them, where nothing is).
+    let mag = spectrum(&voiced(220.0, 1.0));
+    let all = vec![1.0; mag.len()];
+    let p = h.pitch(&mag, &all, &Register::default(), &mut Vec::new());
+    assert!((p.f0 / 220.0 - 1.0).abs() < 0.01, "{}", p.f0);
+    let ghost = Pitch {
+        f0: 110.0,
+        voicing: 1.0,
+        salience: 0.4 * p.salience,
+    };
+    let pitch = [p, ghost];
+    let mut e = [0.0; 2];
+    for harm in [1.0, 3.0, 7.0] {
+        let k = (harm * 220.0 / h.hz_per_bin).round() as usize;
+        h.evidence(&pitch, k, &mut e);
+        assert!(e[0] > 0.8 && e[1] < 0.2, "harmonic {harm}: {e:?}");
+    }
+    // Between the talker's harmonics the subharmonic comb keeps its claim.
+    let k = (330.0 / h.hz_per_bin).round() as usize;
+    h.evidence(&pitch, k, &mut e);
+    assert!(e[0] < 0.01 && e[1] > 0.8, "{e:?}");
+    // Its pitch is its own at the odd teeth only (about 0.6; a same-F0 rule would give it
+    // all, 1), so it weighs less in its register.
+    let mut own = [0.0; 2];
+    h.ownership(&pitch, &mut own);
+    assert!(own[0] > 0.9 && own[1] < 0.7, "{own:?}");
+}
+
+#[test]
+fn an_unresolved_bin_goes_to_the_label_whose_comb_passes_through_it() {
+    let h = harmonic();
+    let f0 = 120.0;
+    let k = (2.0 * f0 / h.hz_per_bin).round() as usize;
+    assert!(h.membership(f0, k as f64) > 0.8);
+    assert_eq!(h.membership(f0, (k + 3) as f64), 0.0);
+    // Labels 0 and 1 are collinear here, label 2 is resolved; the spatial split is even.
+    let mut g = vec![0.45, 0.45, 0.1];
+    let unresolved = [1.0, 1.0, 0.0];
+    h.regroup(
+        &mut g,
+        &unresolved,
+        &[h.membership(f0, k as f64), 0.0, 1.0],
+        0.05,
+        &mut Vec::new(),
+    );
+    assert!(g[0] > 0.8 && g[1] < 0.1, "{g:?}");
+    assert_eq!(g[2], 0.1);
+    assert!((g[0] + g[1] - 0.9).abs() < 0.05 + 1e-12);
+    // No evidence in a bin the array cannot resolve at all: the gains there only say who is
+    // louder, so the pool is split evenly; where it is mostly unresolved, the louder label keeps
+    // part of its lead; with the discount off, the spatial split stays.
+    let mut g = vec![0.6, 0.3];
+    h.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05, &mut Vec::new());
+    assert!(
+        (g[0] - 0.45).abs() < 1e-12 && (g[1] - 0.45).abs() < 1e-12,
+        "{g:?}"
+    );
+    let mut g = vec![0.6, 0.3];
+    h.regroup(&mut g, &[0.9, 0.9], &[0.0, 0.0], 0.05, &mut Vec::new());
+    assert!(g[0] > 0.45 + 0.01 && g[0] < 0.6 - 0.01, "{g:?}");
+    assert!((g[0] + g[1] - 0.9).abs() < 1e-12);
+    let spatial = Harmonic::new(
+        &HarmonicConfig {
+            spatial_discount: 0.0,
+            ..HarmonicConfig::default()
+        },
+        FS / N as f64,
+        FS / (N / 2) as f64,
+    );
+    let mut g = vec![0.6, 0.3];
+    spatial.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05, &mut Vec::new());
+    assert!((g[0] - 0.6).abs() < 1e-12 && (g[1] - 0.3).abs() < 1e-12);
+}
+
+#[test]
+fn a_quiet_talker_keeps_its_harmonic_in_a_bin_the_array_cannot_resolve() {
+    let h = harmonic();
+    // The loud label's gain leads 0.9 : 0.1 only because it is louder; the bin lies on the
+    // quiet label's comb and between the loud label's harmonics.
+    let mut g = vec![0.9, 0.1];
+    h.regroup(&mut g, &[1.0, 1.0], &[0.0, 1.0], 0.05, &mut Vec::new());
+    assert!(g[1] > 0.9 && g[0] < 0.1, "{g:?}");
+    // On both combs the bin is shared evenly.
+    let mut g = vec![0.9, 0.1];
+    h.regroup(&mut g, &[1.0, 1.0], &[1.0, 1.0], 0.05, &mut Vec::new());
+    assert!(
+        (g[0] - 0.5).abs() < 1e-9 && (g[1] - 0.5).abs() < 1e-9,
+        "{g:?}"
+    );
+}
+
+#[test]
+fn leakage_follows_the_steering_correlation_and_loading() {
+    let a: Vec<Complex> = (0..6)
+        .map(|m| Complex::from_polar(1.0, 0.1 * m as f64))
+        .collect();
+    let b: Vec<Complex> = (0..6)
+        .map(|m| Complex::from_polar(1.0, -0.1 * m as f64))
+        .collect();
+    let one = vec![Complex::new(1.0, 0.0); 6];
+    let o: Vec<Complex> = (0..6)
+        .map(|m| Complex::from_polar(1.0, std::f64::consts::TAU * m as f64 / 6.0))
+        .collect();
+    assert!(leakage(&a, &a, 0.01) > 0.99);
+    assert!(leakage(&one, &o, 0.01) < 1e-9);
+    let l = leakage(&a, &b, 0.01);
+    assert!(l > 0.0 && l < 1.0 && leakage(&a, &b, 0.1) > l);
+}
