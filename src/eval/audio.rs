@@ -186,6 +186,16 @@ pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport
             continuity: continuity(&refs[i], set, &labels, &streams, block, cfg),
         });
     }
+    let mean = means(&sources);
+    Ok(AudioReport {
+        filter_taps: cfg.bss_filter_taps,
+        sources,
+        mean,
+    })
+}
+
+/// The means over the sources that have each figure.
+fn means(sources: &[SourceAudio]) -> AudioMeans {
     let mean_bss = |f: fn(&SourceAudio) -> Option<BssFigures>| -> Option<BssFigures> {
         let v: Vec<BssFigures> = sources.iter().filter_map(f).collect();
         Some(BssFigures {
@@ -194,7 +204,7 @@ pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport
             sar_db: mean_of(v.iter().map(|b| Some(b.sar_db)))?,
         })
     };
-    let mean = AudioMeans {
+    AudioMeans {
         si_sdr_db: mean_of(sources.iter().map(|s| s.si_sdr_db)),
         si_sdr_mixture_db: mean_of(sources.iter().map(|s| s.si_sdr_mixture_db)),
         si_sdr_improvement_db: mean_of(sources.iter().map(|s| s.si_sdr_improvement_db)),
@@ -207,12 +217,7 @@ pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport
                 .filter(|s| s.continuity.blocks > 0)
                 .map(|s| Some(s.continuity.stream_labels as f64)),
         ),
-    };
-    Ok(AudioReport {
-        filter_taps: cfg.bss_filter_taps,
-        sources,
-        mean,
-    })
+    }
 }
 
 /// For each source, the index of its stream and how it was chosen.

@@ -203,6 +203,40 @@ fn tracks(out: &mut String, t: &TracksReport, r: &EvalReport) -> fmt::Result {
     Ok(())
 }
 
+/// One row of the audio table: SI-SDR of the stream, the mixture and the improvement, then
+/// BSS Eval of the same three, then the stream count.
+fn audio_row(
+    out: &mut String,
+    id: &str,
+    label: String,
+    by: &str,
+    si: [Option<f64>; 3],
+    b: [Option<BssFigures>; 3],
+    streams: String,
+) -> fmt::Result {
+    let [e, m, i] = b.map(bss);
+    writeln!(
+        out,
+        "  {:<10} {:>7} {:>6} {:>7} {:>7} {:>7} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} {:>7}",
+        id,
+        label,
+        by,
+        num(si[0], 1),
+        num(si[1], 1),
+        num(si[2], 1),
+        e[0],
+        e[1],
+        e[2],
+        m[0],
+        m[1],
+        m[2],
+        i[0],
+        i[1],
+        i[2],
+        streams
+    )
+}
+
 fn audio(out: &mut String, a: &AudioReport) -> fmt::Result {
     writeln!(
         out,
@@ -229,36 +263,6 @@ fn audio(out: &mut String, a: &AudioReport) -> fmt::Result {
         "iSAR",
         "streams"
     )?;
-    let row = |out: &mut String,
-               id: &str,
-               label: String,
-               by: &str,
-               si: [Option<f64>; 3],
-               b: [Option<BssFigures>; 3],
-               streams: String|
-     -> fmt::Result {
-        let [e, m, i] = b.map(bss);
-        writeln!(
-            out,
-            "  {:<10} {:>7} {:>6} {:>7} {:>7} {:>7} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} | {:>6} {:>6} {:>6} {:>7}",
-            id,
-            label,
-            by,
-            num(si[0], 1),
-            num(si[1], 1),
-            num(si[2], 1),
-            e[0],
-            e[1],
-            e[2],
-            m[0],
-            m[1],
-            m[2],
-            i[0],
-            i[1],
-            i[2],
-            streams
-        )
-    };
     for s in &a.sources {
         let by = match s.mapped_by {
             Some(super::audio::MappedBy::Tracks) => "track",
@@ -266,7 +270,7 @@ fn audio(out: &mut String, a: &AudioReport) -> fmt::Result {
             Some(super::audio::MappedBy::SiSdr) => "sisdr",
             None => "-",
         };
-        row(
+        audio_row(
             out,
             &s.id,
             s.label.map_or("-".into(), |l| l.to_string()),
@@ -277,7 +281,7 @@ fn audio(out: &mut String, a: &AudioReport) -> fmt::Result {
         )?;
     }
     let m = &a.mean;
-    row(
+    audio_row(
         out,
         "mean",
         String::new(),

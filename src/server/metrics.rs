@@ -169,28 +169,37 @@ impl ServerMetrics {
             )?,
             registry,
         };
-        m.registry.register(Box::new(m.frames_in.clone()))?;
-        m.registry.register(Box::new(m.refused.clone()))?;
-        m.registry.register(Box::new(m.output_dropped.clone()))?;
-        m.registry.register(Box::new(m.steps.clone()))?;
-        m.registry.register(Box::new(m.step_latency.clone()))?;
-        m.registry.register(Box::new(m.step_processing.clone()))?;
-        m.registry.register(Box::new(m.audio_seconds.clone()))?;
-        m.registry
-            .register(Box::new(m.processing_seconds.clone()))?;
-        m.registry.register(Box::new(m.panics.clone()))?;
-        m.registry.register(Box::new(m.sessions_created.clone()))?;
-        m.registry.register(Box::new(m.sessions.clone()))?;
-        m.registry.register(Box::new(m.clients.clone()))?;
-        m.registry.register(Box::new(m.queue_depth.clone()))?;
-        m.registry
-            .register(Box::new(m.separation_queue_depth.clone()))?;
-        m.registry.register(Box::new(m.separation_waits.clone()))?;
-        m.registry.register(Box::new(m.live_tracks.clone()))?;
-        m.registry.register(Box::new(m.resident_bytes.clone()))?;
-        m.registry.register(Box::new(m.cpu_seconds.clone()))?;
-        m.registry.register(Box::new(m.real_time_factor.clone()))?;
+        m.register_all()?;
         Ok(m)
+    }
+
+    /// Registers every collector with the registry.
+    fn register_all(&self) -> Result<(), prometheus::Error> {
+        let all: Vec<Box<dyn prometheus::core::Collector>> = vec![
+            Box::new(self.frames_in.clone()),
+            Box::new(self.refused.clone()),
+            Box::new(self.output_dropped.clone()),
+            Box::new(self.steps.clone()),
+            Box::new(self.step_latency.clone()),
+            Box::new(self.step_processing.clone()),
+            Box::new(self.audio_seconds.clone()),
+            Box::new(self.processing_seconds.clone()),
+            Box::new(self.panics.clone()),
+            Box::new(self.sessions_created.clone()),
+            Box::new(self.sessions.clone()),
+            Box::new(self.clients.clone()),
+            Box::new(self.queue_depth.clone()),
+            Box::new(self.separation_queue_depth.clone()),
+            Box::new(self.separation_waits.clone()),
+            Box::new(self.live_tracks.clone()),
+            Box::new(self.resident_bytes.clone()),
+            Box::new(self.cpu_seconds.clone()),
+            Box::new(self.real_time_factor.clone()),
+        ];
+        for c in all {
+            self.registry.register(c)?;
+        }
+        Ok(())
     }
 
     /// Counts a created session.

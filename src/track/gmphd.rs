@@ -234,6 +234,56 @@ impl<const N: usize> GmphdTracker<N> {
         self.comps = merged;
     }
 
+    /// Predicts every component over `dt` (survival, motion) and adds this step's birth terms;
+    /// returns the transition matrix the label association predicts with.
+    fn predict(&mut self, dt: f64) -> nalgebra::SMatrix<f64, N, N> {
+        let (f, q) = self.motion.transition(dt);
+        let ps = self.cfg.survival_probability;
+        let transition = Transition::new(f, q);
+        for c in &mut self.comps {
+            if let Some(g) = transition.predict(&c.g) {
+                c.g = g;
+            }
+            c.w *= ps;
+            c.audio = 0.0;
+        }
+        let mut births = self.fixed_births.clone();
+        births.append(&mut self.pending);
+        for (b, t) in births.into_iter().enumerate() {
+            self.comps.push(Component {
+                w: t.existence,
+                g: t.density,
+                tags: vec![(Tag::Birth(b as u32), 1.0)],
+                audio: 0.0,
+            });
+        }
+        f
+    }
+
+    /// Next step's births from this step's measurements that no labelled component explains
+    /// (`r_u`: each measurement's probability of having been assigned).
+    fn measurement_births(&self, scans: &[SensorScan], r_u: &[Vec<f64>]) -> Vec<BirthTerm<N>> {
+        let min_w = self.cfg.birth.suppress_existence;
+        let confirmed: Vec<Gaussian<N>> = self
+            .comps
+            .iter()
+            .filter(|c| c.w >= min_w && matches!(c.dominant(), Some(Tag::Label(_))))
+            .map(|c| c.g.clone())
+            .collect();
+        let ctx = BirthContext {
+            cfg: &self.cfg.birth,
+            ukf: &self.cfg.ukf,
+            region: self.region.as_ref(),
+            sensors: &self.sensors,
+            modes: &self.modes,
+        };
+        let birth_scans = BirthScan::of_step(scans, r_u);
+        births_from_measurements(&ctx, &birth_scans, &confirmed)
+            .into_iter()
+            .map(|b| b.term)
+            .collect()
+    }
+
     /// Label association of the extracted estimates (spec 002 5.3 steps 4-8).
     fn label_estimates(&mut self, k: u64, f: &nalgebra::SMatrix<f64, N, N>) -> Vec<usize> {
         let cfg = &self.cfg.gmphd;
@@ -358,26 +408,7 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
     fn step(&mut self, input: &StepInput) -> Vec<TrackEstimate> {
         let (k, dt) = self.clock.advance(input, &mut self.stats);
         let scans = collect(input, &self.sensors, &mut self.stats);
-        let (f, q) = self.motion.transition(dt);
-        let ps = self.cfg.survival_probability;
-        let transition = Transition::new(f, q);
-        for c in &mut self.comps {
-            if let Some(g) = transition.predict(&c.g) {
-                c.g = g;
-            }
-            c.w *= ps;
-            c.audio = 0.0;
-        }
-        let mut births = self.fixed_births.clone();
-        births.append(&mut self.pending);
-        for (b, t) in births.into_iter().enumerate() {
-            self.comps.push(Component {
-                w: t.existence,
-                g: t.density,
-                tags: vec![(Tag::Birth(b as u32), 1.0)],
-                audio: 0.0,
-            });
-        }
+        let f = self.predict(dt);
         let mut r_u = Vec::with_capacity(scans.len());
         for scan in &scans {
             r_u.push(self.update_sensor(scan));
@@ -419,25 +450,7 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
         let audio = scans.iter().any(|s| self.sensors[s.sensor].audio);
         let out = self.reporter.report(estimates, &fallback, audio);
         if self.cfg.birth.from_measurements {
-            let min_w = self.cfg.birth.suppress_existence;
-            let confirmed: Vec<Gaussian<N>> = self
-                .comps
-                .iter()
-                .filter(|c| c.w >= min_w && matches!(c.dominant(), Some(Tag::Label(_))))
-                .map(|c| c.g.clone())
-                .collect();
-            let ctx = BirthContext {
-                cfg: &self.cfg.birth,
-                ukf: &self.cfg.ukf,
-                region: self.region.as_ref(),
-                sensors: &self.sensors,
-                modes: &self.modes,
-            };
-            let birth_scans = BirthScan::of_step(&scans, &r_u);
-            self.pending = births_from_measurements(&ctx, &birth_scans, &confirmed)
-                .into_iter()
-                .map(|b| b.term)
-                .collect();
+            self.pending = self.measurement_births(&scans, &r_u);
         }
         out
     }

@@ -1,13 +1,16 @@
 //! The per-bin work of a frame: fixed beamformers, adaptation control, the adaptive stage and
 //! the post-filter.
 
-use super::{POWER_SMOOTHING, Separator};
+use super::{POWER_SMOOTHING, Separator, Work};
 use crate::dsp::Complex;
 use crate::label::Label;
-use crate::separate::config::{AdaptationConfig, BeamformerKind, PostFilterTarget};
+use crate::separate::config::{
+    AdaptationConfig, BeamformerKind, PostFilterTarget, SeparatorConfig,
+};
 use crate::separate::harmonic::{self, Pitch};
 use crate::separate::mvdr;
 use crate::separate::rls::{self, RlsStep};
+use crate::separate::stream::Stream;
 
 impl Separator {
     /// The per-bin work: fixed beamformers, adaptation control, adaptive stage, post-filter.
@@ -143,50 +146,14 @@ impl Separator {
         let out = match kind {
             BeamformerKind::DelayAndSum | BeamformerKind::NullSteering => d,
             BeamformerKind::Gsc => {
-                let dims = s.rls_dims;
-                let l = dims.l;
-                if s.steering_changed {
-                    s.blocking.set(k, a);
-                }
-                // The padding must be zero (another group may have left values there).
-                w.ur[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
-                w.ui[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
-                s.blocking.apply_split(k, y, &mut w.ur[..l], &mut w.ui[..l]);
-                let stride = dims.stride();
-                let st = &mut s.rls[k * stride..(k + 1) * stride];
-                let e = rls::output(st, dims, &w.ur, &w.ui, d);
-                if self.record {
-                    // Effective weights W - B V with the weights that made this output.
-                    rls::weights(st, dims, &mut w.u[..l]);
-                    s.blocking.combine(k, &w.u[..l], &mut w.w2[..m]);
-                }
-                // Partial update: bin k adapts when (frame + k) is a multiple of `every`; its
-                // own update counter then is (frame + k) / every.
-                let every = self.cfg.rls.update_every.max(1);
-                let phase = s.leak_index.wrapping_add(k);
-                if every == 1 || phase.is_multiple_of(every) {
-                    let step = RlsStep {
-                        forgetting: w.rls_forgetting,
-                        leakage: self.cfg.rls.leakage,
-                        max_norm2: w.max_norm2[i],
-                    };
-                    let ok = rls::adapt(
-                        st,
-                        dims,
-                        &w.ur,
-                        &w.ui,
-                        e,
-                        w.beta[i],
-                        power,
-                        phase / every,
-                        &step,
-                        &mut w.scratch,
-                    );
-                    if !ok {
-                        s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);
-                    }
-                }
-                e
+                let gsc = GscBin {
+                    cfg: &self.cfg,
+                    record: self.record,
+                    k,
+                    i,
+                    power,
+                };
+                gsc.output(s, w, g, d)
             }
             BeamformerKind::Mvdr => {
                 let st = &mut s.adaptive[k * s.stride..(k + 1) * s.stride];
@@ -425,6 +392,73 @@ impl Separator {
                 &mut w.shares,
             );
         }
+    }
+}
+
+/// One bin of one stream's generalised sidelobe canceller.
+struct GscBin<'a> {
+    cfg: &'a SeparatorConfig,
+    record: bool,
+    k: usize,
+    i: usize,
+    /// The bin's input power (the canceller's regularisation scale).
+    power: f64,
+}
+
+impl GscBin<'_> {
+    /// The canceller's output for the fixed beamformer's output `d` on microphone group `g`:
+    /// the blocking matrix's outputs are filtered and subtracted, then the canceller adapts
+    /// (every `update_every` frames per bin, weighted by the adaptation weight).
+    fn output(&self, s: &mut Stream, w: &mut Work, g: usize, d: Complex) -> Complex {
+        let (k, i, power) = (self.k, self.i, self.power);
+        let m = w.yg[g].len();
+        let a = &w.walk[g][i * m..(i + 1) * m];
+        let y = &w.yg[g];
+        let dims = s.rls_dims;
+        let l = dims.l;
+        if s.steering_changed {
+            s.blocking.set(k, a);
+        }
+        // The padding must be zero (another group may have left values there).
+        w.ur[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
+        w.ui[l..dims.lp].iter_mut().for_each(|x| *x = 0.0);
+        s.blocking.apply_split(k, y, &mut w.ur[..l], &mut w.ui[..l]);
+        let stride = dims.stride();
+        let st = &mut s.rls[k * stride..(k + 1) * stride];
+        let e = rls::output(st, dims, &w.ur, &w.ui, d);
+        if self.record {
+            // Effective weights W - B V with the weights that made this output.
+            rls::weights(st, dims, &mut w.u[..l]);
+            s.blocking.combine(k, &w.u[..l], &mut w.w2[..m]);
+        }
+        // Partial update: bin k adapts when (frame + k) is a multiple of `every`; its own update
+        // counter then is (frame + k) / every.
+        let every = self.cfg.rls.update_every.max(1);
+        let phase = s.leak_index.wrapping_add(k);
+        if every == 1 || phase.is_multiple_of(every) {
+            let step = RlsStep {
+                forgetting: w.rls_forgetting,
+                leakage: self.cfg.rls.leakage,
+                max_norm2: w.max_norm2[i],
+            };
+            let ok = rls::adapt(
+                st,
+                dims,
+                &w.ur,
+                &w.ui,
+                e,
+                w.beta[i],
+                power,
+                phase / every,
+                &step,
+                &mut w.scratch,
+            );
+            if !ok {
+                let kind = self.cfg.beamformer;
+                s.reset_bin(kind, m, k, self.cfg.rls.init_regularisation, power);
+            }
+        }
+        e
     }
 }
 

@@ -90,19 +90,20 @@ pub async fn listen(
     Ok(got)
 }
 
-async fn drive(
-    mut ws: Ws,
-    feed: &[FeedItem],
+/// Reads the welcome (into `got`) and answers with the hello asking for `opts.outputs` and the
+/// tracks; returns the session's sample rate, step and the step it runs next.
+async fn handshake(
+    ws: &mut Ws,
+    got: &mut Received,
     opts: &StreamOptions,
-) -> Result<Received, ClientError> {
-    let mut got = Received::default();
+) -> Result<(f64, f64, u64), ClientError> {
     let first = ws
         .next()
         .await
         .ok_or_else(|| ClientError("closed before the welcome".into()))?
         .map_err(cerr)?;
-    take(&mut got, first);
-    let (sample_rate, step_s, next_step) = match &got.welcome {
+    take(got, first);
+    let welcome = match &got.welcome {
         Some(ServerMessage::Welcome {
             sample_rate,
             step_s,
@@ -120,6 +121,16 @@ async fn drive(
     ws.send(Message::text(serde_json::to_string(&hello).map_err(cerr)?))
         .await
         .map_err(cerr)?;
+    Ok(welcome)
+}
+
+async fn drive(
+    mut ws: Ws,
+    feed: &[FeedItem],
+    opts: &StreamOptions,
+) -> Result<Received, ClientError> {
+    let mut got = Received::default();
+    let (sample_rate, step_s, next_step) = handshake(&mut ws, &mut got, opts).await?;
     let stop = opts.disconnect_at.unwrap_or(feed.len()).min(feed.len());
     let mut idx = opts.from.min(stop);
     let sent_audio_end = feed[..idx]
