@@ -83,6 +83,11 @@ fn latency_buckets() -> Vec<f64> {
     ]
 }
 
+/// A histogram of step times on the latency buckets.
+fn latency_histogram(name: &str, help: &str) -> Result<Histogram, prometheus::Error> {
+    Histogram::with_opts(HistogramOpts::new(name, help).buckets(latency_buckets()))
+}
+
 impl ServerMetrics {
     /// Registers the collectors in a new registry.
     pub fn new() -> Result<Self, prometheus::Error> {
@@ -113,19 +118,13 @@ impl ServerMetrics {
                 "Output messages slow stream clients skipped",
             )?,
             steps: IntCounter::new("avsep_steps_total", "Tracker steps run")?,
-            step_latency: Histogram::with_opts(
-                HistogramOpts::new(
-                    "avsep_step_latency_seconds",
-                    "From arrival of the message completing a step to the broadcast of its tracks",
-                )
-                .buckets(latency_buckets()),
+            step_latency: latency_histogram(
+                "avsep_step_latency_seconds",
+                "From arrival of the message completing a step to the broadcast of its tracks",
             )?,
-            step_processing: Histogram::with_opts(
-                HistogramOpts::new(
-                    "avsep_step_processing_seconds",
-                    "Pipeline processing time per tracker step",
-                )
-                .buckets(latency_buckets()),
+            step_processing: latency_histogram(
+                "avsep_step_processing_seconds",
+                "Pipeline processing time per tracker step",
             )?,
             audio_seconds: prometheus::Counter::new(
                 "avsep_audio_seconds_total",

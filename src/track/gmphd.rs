@@ -234,8 +234,9 @@ impl<const N: usize> GmphdTracker<N> {
         self.comps = merged;
     }
 
-    /// Predicts every component over `dt` (survival, motion) and adds this step's birth terms;
-    /// returns the transition matrix the label association predicts with.
+    /// Predicts every component over `dt` (survival, motion) and adds this step's birth terms:
+    /// the fixed ones, then the measurement births planned last step (taken from `pending`).
+    /// Returns the transition matrix the label association predicts with.
     fn predict(&mut self, dt: f64) -> nalgebra::SMatrix<f64, N, N> {
         let (f, q) = self.motion.transition(dt);
         let ps = self.cfg.survival_probability;

@@ -151,6 +151,7 @@ impl Separator {
                     record: self.record,
                     k,
                     i,
+                    m,
                     power,
                 };
                 gsc.output(s, w, g, d)
@@ -401,6 +402,8 @@ struct GscBin<'a> {
     record: bool,
     k: usize,
     i: usize,
+    /// Microphones in the stream's group.
+    m: usize,
     /// The bin's input power (the canceller's regularisation scale).
     power: f64,
 }
@@ -410,8 +413,7 @@ impl GscBin<'_> {
     /// the blocking matrix's outputs are filtered and subtracted, then the canceller adapts
     /// (every `update_every` frames per bin, weighted by the adaptation weight).
     fn output(&self, s: &mut Stream, w: &mut Work, g: usize, d: Complex) -> Complex {
-        let (k, i, power) = (self.k, self.i, self.power);
-        let m = w.yg[g].len();
+        let (k, i, m, power) = (self.k, self.i, self.m, self.power);
         let a = &w.walk[g][i * m..(i + 1) * m];
         let y = &w.yg[g];
         let dims = s.rls_dims;

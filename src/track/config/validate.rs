@@ -50,7 +50,8 @@ impl TrackerConfig {
         self.validate_sensors()?;
         self.validate_filters()?;
         self.validate_birth()?;
-        self.validate_modes()
+        self.validate_modes()?;
+        self.validate_gmphd()
     }
 
     /// The motion model.
@@ -95,7 +96,7 @@ impl TrackerConfig {
         Ok(())
     }
 
-    /// The filters and the two trackers' hypothesis management.
+    /// The filters and the GLMB's hypothesis management.
     fn validate_filters(&self) -> Result<(), ConfigError> {
         positive(self.ukf.alpha, "ukf.alpha")?;
         non_negative(self.ukf.beta, "ukf.beta")?;
@@ -119,6 +120,11 @@ impl TrackerConfig {
             "must be between 1 and 1000000",
         )?;
         probability_open(g.prune_threshold, "glmb.prune_threshold")?;
+        Ok(())
+    }
+
+    /// The GM-PHD's pruning, merging and label association.
+    fn validate_gmphd(&self) -> Result<(), ConfigError> {
         let p = &self.gmphd;
         probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
         positive(p.merge_threshold, "gmphd.merge_threshold")?;

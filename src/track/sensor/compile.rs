@@ -129,14 +129,7 @@ fn observation_model<const N: usize>(
             clutter_rate,
             clutter_volume_m3,
         } => {
-            check_positive(*noise_std_m, index, "noise_std_m")?;
-            check_positive(*clutter_volume_m3, index, "clutter_volume_m3")?;
-            *r *= noise_std_m * noise_std_m;
-            let observed = Observed {
-                obs: Observation::Position,
-                dim: 3,
-                log_density: -clutter_volume_m3.ln(),
-            };
+            let observed = position(index, *noise_std_m, *clutter_volume_m3, r)?;
             let det = Detection::audio(*p_detect, *min_p_detect, *clutter_rate, FilterKind::Ekf);
             (observed, det)
         }
@@ -197,6 +190,23 @@ fn observation_model<const N: usize>(
                 Detection::other(*p_detect, *clutter_rate, FilterKind::Ekf),
             )
         }
+    })
+}
+
+/// An array's 3-D position fix with isotropic noise, clutter uniform over `clutter_volume_m3`.
+fn position<const N: usize>(
+    index: usize,
+    noise_std_m: f64,
+    clutter_volume_m3: f64,
+    r: &mut Matrix3<f64>,
+) -> Result<Observed<N>, ConfigError> {
+    check_positive(noise_std_m, index, "noise_std_m")?;
+    check_positive(clutter_volume_m3, index, "clutter_volume_m3")?;
+    *r *= noise_std_m * noise_std_m;
+    Ok(Observed {
+        obs: Observation::Position,
+        dim: 3,
+        log_density: -clutter_volume_m3.ln(),
     })
 }
 
