@@ -137,6 +137,26 @@ fn stream(args: StreamArgs) -> Result<(), CliError> {
     Ok(())
 }
 
+/// Creates a session over REST from a serialised creation body (`key`: the admin key, when the
+/// server wants one).
+pub(super) async fn create_session(
+    addr: &str,
+    key: Option<&str>,
+    body: &[u8],
+) -> Result<SessionCreated, CliError> {
+    let r = http(addr, "POST", "/v1/sessions", key, Some(body))
+        .await
+        .map_err(CliError::runtime)?;
+    if r.status != 201 {
+        return Err(CliError::runtime(format!(
+            "creating a session: HTTP {}: {}",
+            r.status,
+            r.text()
+        )));
+    }
+    r.json().map_err(CliError::runtime)
+}
+
 async fn create_and_stream(
     args: &StreamArgs,
     addr: &str,
@@ -145,23 +165,7 @@ async fn create_and_stream(
 ) -> Result<(SessionCreated, Received), CliError> {
     let body =
         serde_json::to_vec(&create_body(&scene.layout, settings)).map_err(CliError::runtime)?;
-    let r = http(
-        addr,
-        "POST",
-        "/v1/sessions",
-        args.admin_key.as_deref(),
-        Some(&body),
-    )
-    .await
-    .map_err(CliError::runtime)?;
-    if r.status != 201 {
-        return Err(CliError::runtime(format!(
-            "creating a session: HTTP {}: {}",
-            r.status,
-            r.text()
-        )));
-    }
-    let created: SessionCreated = r.json().map_err(CliError::runtime)?;
+    let created = create_session(addr, args.admin_key.as_deref(), &body).await?;
     let feed = scene_feed(scene, args.block.max(1), SampleEncoding::F32);
     let url = format!("ws://{addr}{}", created.stream);
     let got = stream_feed(&url, &created.token, &feed, &stream_options(args))

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use super::CliError;
+use super::client::create_session;
 use crate::protocol::rest::{SessionCreated, SessionMetrics};
 use crate::protocol::{AudioSelection, OutputSelection, SampleEncoding};
 use crate::scene::sim::{PresetOptions, SimConfig, simulate};
@@ -309,17 +310,7 @@ async fn create_sessions(
     let body = serde_json::to_vec(&create_body(&scene.layout, None)).map_err(CliError::runtime)?;
     let mut sessions = Vec::with_capacity(n);
     for _ in 0..n {
-        let r = http(addr, "POST", "/v1/sessions", key, Some(&body))
-            .await
-            .map_err(CliError::runtime)?;
-        if r.status != 201 {
-            return Err(CliError::runtime(format!(
-                "creating a session: HTTP {}: {}",
-                r.status,
-                r.text()
-            )));
-        }
-        sessions.push(r.json().map_err(CliError::runtime)?);
+        sessions.push(create_session(addr, key, &body).await?);
     }
     Ok(sessions)
 }
