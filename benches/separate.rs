@@ -54,6 +54,7 @@ fn targets(frame: usize, speaking: f64) -> Vec<Target> {
             direction_only: false,
             speaking,
             activity: 1.0,
+            pitch: None,
         })
         .collect()
 }

@@ -297,6 +297,7 @@ fn oracle(mixture: &Mixture, t: f64) -> Vec<Target> {
             direction_only: false,
             speaking: if mixture.talking(i, t) { 1.0 } else { 0.0 },
             activity: 1.0,
+            pitch: None,
         })
         .collect()
 }
@@ -472,6 +473,7 @@ fn static_targets(positions: &[Vec3], speaking: f64) -> Vec<Target> {
             direction_only: false,
             speaking,
             activity: 1.0,
+            pitch: None,
         })
         .collect()
 }

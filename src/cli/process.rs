@@ -26,6 +26,10 @@ pub struct ProcessArgs {
     /// Steer the separator with the scene's true trajectories instead of the tracker.
     #[arg(long)]
     pub oracle_tracks: bool,
+    /// With --oracle-tracks: give the harmonic grouping each true source's pitch (read from its
+    /// truth signal) instead of estimating it, to measure the grouping with the right pitch.
+    #[arg(long, requires = "oracle_tracks")]
+    pub oracle_pitch: bool,
     /// Print the run summary as JSON instead of a short report.
     #[arg(long)]
     pub json: bool,
@@ -62,6 +66,7 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
         &args.out,
         OfflineOptions {
             oracle_tracks: args.oracle_tracks,
+            oracle_pitch: args.oracle_pitch,
             ..Default::default()
         },
         &|f| bar.set((f * 1000.0) as u64),

@@ -22,6 +22,9 @@ use super::session::{Pipeline, PipelineStats};
 pub struct OfflineOptions {
     /// Steer the separator with the scene's true trajectories instead of the tracker.
     pub oracle_tracks: bool,
+    /// With `oracle_tracks`: the harmonic grouping reads each true source's pitch from its
+    /// truth signal instead of estimating it.
+    pub oracle_pitch: bool,
     /// Audio is pushed in blocks of this many sample frames (as a client would stream it).
     pub block_samples: usize,
 }
@@ -30,6 +33,7 @@ impl Default for OfflineOptions {
     fn default() -> Self {
         Self {
             oracle_tracks: false,
+            oracle_pitch: false,
             block_samples: 1024,
         }
     }
@@ -62,6 +66,8 @@ pub struct RunSummary {
     pub real_time_factor: f64,
     /// Whether the tracks were the scene's truth.
     pub oracle_tracks: bool,
+    /// Whether the harmonic grouping was given the true sources' pitch.
+    pub oracle_pitch: bool,
     /// Labels ever reported.
     pub tracks: Vec<String>,
     /// Number of speech segments in the diarization.
@@ -207,6 +213,11 @@ pub fn process_scene(
         })?;
         pipeline.use_oracle_tracks(truth);
     }
+    if opts.oracle_pitch {
+        pipeline.use_oracle_pitch().map_err(|e| {
+            ProcessError::Scene(format!("{}: --oracle-pitch: {e}", scene.dir.display()))
+        })?;
+    }
     let frames = scene.audio.as_ref().map_or(0, Audio::frames);
     let mut sink = OutputSink::create(out, frames, pipeline.clock().step_s())?;
     feed_scene(
@@ -235,6 +246,7 @@ pub fn process_scene(
             0.0
         },
         oracle_tracks: opts.oracle_tracks,
+        oracle_pitch: opts.oracle_pitch,
         tracks: written.labels.iter().map(ToString::to_string).collect(),
         speech_segments: written.speech_segments,
         warnings: written.warnings,

@@ -3,12 +3,13 @@
 
 use std::collections::BTreeMap;
 
+use crate::dsp::{VoicePitch, Yin};
 use crate::geometry::{ArrayShape, Layout, Vec3, deg};
 use crate::label::Label;
 use crate::localize::ArrayObservation;
 use crate::scene::format::{AudioMeasurementLine, DoaFile, TrackFile};
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, FaceBox, Truth};
-use crate::separate::Target;
+use crate::separate::{SeparatorConfig, Target};
 use crate::track::{Measurement, Scan, SensorKey, TrackEstimate};
 
 use super::config::{AudioMeasurementSource, LocalizedMeasurements, PipelineConfig};
@@ -122,6 +123,7 @@ impl Timeline {
                     direction_only: e.position_std() > DIRECTION_ONLY_STD_M,
                     speaking: e.speaking,
                     activity: *activity,
+                    pitch: None,
                 }
             })
             .collect()
@@ -370,8 +372,14 @@ pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
         .collect()
 }
 
-/// True sources present at `t` as separator targets.
-pub fn oracle_targets(truth: &Truth, t: f64, activity: f64) -> Vec<Target> {
+/// True sources present at `t` as separator targets, with their true pitch when `pitch` is
+/// given (`--oracle-pitch`).
+pub fn oracle_targets(
+    truth: &Truth,
+    t: f64,
+    activity: f64,
+    pitch: Option<&OraclePitch>,
+) -> Vec<Target> {
     oracle_estimates(truth, t)
         .into_iter()
         .map(|e| Target {
@@ -380,6 +388,112 @@ pub fn oracle_targets(truth: &Truth, t: f64, activity: f64) -> Vec<Target> {
             direction_only: false,
             speaking: e.speaking,
             activity,
+            pitch: pitch.map(|p| p.at(e.label.index as usize, t)),
         })
         .collect()
+}
+
+/// The true sources' pitch (`--oracle-pitch`): each source image's voice read by YIN, one
+/// frame per separator hop, centred where the separator's frames are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OraclePitch {
+    hop_s: f64,
+    tracks: Vec<Vec<VoicePitch>>,
+}
+
+impl OraclePitch {
+    /// Pitch tracks of every source of `truth` at `sample_rate` Hz with the separator's framing
+    /// and F0 range; the error names a source without a signal.
+    pub fn new(truth: &Truth, sample_rate: u32, cfg: &SeparatorConfig) -> Result<Self, String> {
+        let fs = f64::from(sample_rate);
+        let h = &cfg.post_filter.harmonic;
+        let yin = Yin::new(fs, h.f0_min_hz, h.f0_max_hz, cfg.frame);
+        let tracks = truth
+            .sources
+            .iter()
+            .map(|s| {
+                s.signal
+                    .as_deref()
+                    .map(|x| yin.track(x, cfg.hop))
+                    .ok_or_else(|| format!("truth source {:?} has no signal", s.id))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            hop_s: cfg.hop.max(1) as f64 / fs,
+            tracks,
+        })
+    }
+
+    /// Source `i`'s pitch in the frame nearest time `t` (s); unvoiced outside its signal.
+    pub fn at(&self, i: usize, t: f64) -> VoicePitch {
+        let j = (t / self.hop_s).round();
+        if j.is_nan() || j < 0.0 {
+            return VoicePitch::default();
+        }
+        self.tracks
+            .get(i)
+            .and_then(|tr| tr.get(j as usize))
+            .copied()
+            .unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::TruthSource;
+
+    fn source(id: &str, signal: Option<Vec<f32>>) -> TruthSource {
+        TruthSource {
+            id: id.into(),
+            signal,
+            trajectory: vec![
+                (0.0, Vec3::new(1.0, 1.0, 1.5)),
+                (2.0, Vec3::new(1.0, 1.0, 1.5)),
+            ],
+            active: vec![(0.5, 2.0)],
+        }
+    }
+
+    #[test]
+    fn oracle_pitch_reads_each_sources_voice_at_the_frame_times() {
+        let fs = 16000u32;
+        // Silent for half a second, then a 150 Hz voice.
+        let voice: Vec<f32> = (0..2 * fs as usize)
+            .map(|i| {
+                let t = i as f64 / f64::from(fs);
+                if t < 0.5 {
+                    0.0
+                } else {
+                    (1..10)
+                        .map(|h| (std::f64::consts::TAU * 150.0 * f64::from(h) * t).sin())
+                        .sum::<f64>() as f32
+                }
+            })
+            .collect();
+        let cfg = SeparatorConfig::default();
+        let truth = Truth {
+            sources: vec![source("s1", Some(voice))],
+        };
+        let p = OraclePitch::new(&truth, fs, &cfg).expect("every source has a signal");
+        assert_eq!(p.at(0, 0.2), VoicePitch::default());
+        let v = p.at(0, 1.0);
+        assert!(
+            (v.f0 / 150.0 - 1.0).abs() < 0.005 && v.voicing == 1.0,
+            "{v:?}"
+        );
+        // Outside the signal, and for an unknown source: unvoiced.
+        assert_eq!(p.at(0, 5.0), VoicePitch::default());
+        assert_eq!(p.at(0, -1.0), VoicePitch::default());
+        assert_eq!(p.at(3, 1.0), VoicePitch::default());
+        let targets = oracle_targets(&truth, 1.0, 1.0, Some(&p));
+        assert_eq!(targets[0].pitch, Some(v));
+        assert_eq!(oracle_targets(&truth, 1.0, 1.0, None)[0].pitch, None);
+
+        let missing = Truth {
+            sources: vec![source("s1", None)],
+        };
+        let err = OraclePitch::new(&missing, fs, &cfg).expect_err("s1 has no signal");
+        assert!(err.contains("\"s1\""), "{err}");
+    }
 }

@@ -39,6 +39,7 @@ pub use config::{
 pub use separator::Separator;
 pub use steering::Steering;
 
+use crate::dsp::VoicePitch;
 use crate::geometry::Vec3;
 use crate::label::Label;
 
@@ -57,4 +58,8 @@ pub struct Target {
     pub speaking: f64,
     /// This frame's voice-activity score, in [0, 1].
     pub activity: f64,
+    /// The target's true pitch at this frame, used instead of the harmonic grouping's estimate
+    /// (offline `--oracle-pitch` runs, which measure the grouping with the right pitch); `None`
+    /// estimates it.
+    pub pitch: Option<VoicePitch>,
 }

@@ -8,7 +8,7 @@ use super::null_steering::NullSteering;
 use super::postfilter::PostState;
 use super::rls;
 use super::steering::Steering;
-use crate::dsp::Complex;
+use crate::dsp::{Complex, VoicePitch};
 use crate::geometry::Vec3;
 use crate::label::Label;
 
@@ -59,6 +59,8 @@ pub(super) struct Stream {
     pub constraints_changed: bool,
     /// The label's pitch register (harmonic grouping).
     pub register: Register,
+    /// This frame's known pitch from the target (oracle runs), used instead of the estimate.
+    pub known_pitch: Option<VoicePitch>,
 }
 
 impl Stream {
@@ -89,6 +91,7 @@ impl Stream {
             steering_changed: true,
             constraints_changed: true,
             register: Register::default(),
+            known_pitch: None,
         }
     }
 

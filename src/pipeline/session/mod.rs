@@ -23,7 +23,7 @@ use super::input::{self, InputError};
 use super::sensor_queue::SensorQueue;
 use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
 use super::speaking::SpeakingFilter;
-use super::stages::{SensorRoutes, Timeline};
+use super::stages::{OraclePitch, SensorRoutes, Timeline};
 use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
 /// Counters of a pipeline's life, for summaries and metrics.
@@ -56,8 +56,9 @@ enum TrackSource {
         tracker: Box<dyn Tracker>,
         routes: SensorRoutes,
     },
-    /// The scene's true trajectories (for measuring separation alone).
-    Oracle(Truth),
+    /// The scene's true trajectories (for measuring separation alone), and the true sources'
+    /// pitch when the harmonic grouping is to use it.
+    Oracle(Truth, Option<OraclePitch>),
 }
 
 /// One session's processing chain.
@@ -152,7 +153,23 @@ impl Pipeline {
 
     /// Replaces the tracker by the scene's true trajectories (labels `0.i` for source i).
     pub fn use_oracle_tracks(&mut self, truth: Truth) {
-        self.source = TrackSource::Oracle(truth);
+        self.source = TrackSource::Oracle(truth, None);
+    }
+
+    /// With oracle tracks, hands the separator each true source's pitch (read from its signal)
+    /// instead of the harmonic grouping's estimate, to measure the grouping alone. The error
+    /// says why it cannot (no oracle tracks, or a source without a signal).
+    pub fn use_oracle_pitch(&mut self) -> Result<(), String> {
+        let rate = self.layout.sample_rate;
+        match &mut self.source {
+            TrackSource::Oracle(truth, pitch) => {
+                *pitch = Some(OraclePitch::new(truth, rate, &self.cfg.separate)?);
+                Ok(())
+            }
+            TrackSource::Tracker { .. } => {
+                Err("oracle pitch needs oracle tracks (the pitch is per true source)".into())
+            }
+        }
     }
 
     /// The session's layout.
@@ -432,7 +449,7 @@ impl Pipeline {
     pub fn sensor_keys(&self) -> Vec<SensorKey> {
         match &self.source {
             TrackSource::Tracker { routes, .. } => routes.keys().to_vec(),
-            TrackSource::Oracle(_) => Vec::new(),
+            TrackSource::Oracle(..) => Vec::new(),
         }
     }
 }

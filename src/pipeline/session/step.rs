@@ -148,7 +148,7 @@ impl Pipeline {
                 );
                 est
             }
-            TrackSource::Oracle(truth) => stages::oracle_estimates(truth, t_est),
+            TrackSource::Oracle(truth, _) => stages::oracle_estimates(truth, t_est),
         };
         self.timeline.push(t_est, estimates.clone(), activity);
         self.emit_tracks(k, t_est, &estimates, sink);
@@ -158,7 +158,7 @@ impl Pipeline {
         if let (Some(sep), Some(audio)) = (self.separation.as_mut(), self.audio.as_ref()) {
             let timeline = &self.timeline;
             let oracle = match &self.source {
-                TrackSource::Oracle(truth) => Some(truth),
+                TrackSource::Oracle(truth, pitch) => Some((truth, pitch.as_ref())),
                 TrackSource::Tracker { .. } => None,
             };
             sep.advance(
@@ -166,7 +166,7 @@ impl Pipeline {
                 end_sample,
                 &self.clock,
                 |t| match oracle {
-                    Some(truth) => stages::oracle_targets(truth, t, activity),
+                    Some((truth, pitch)) => stages::oracle_targets(truth, t, activity, pitch),
                     None => timeline.targets_at(t),
                 },
                 sink,

@@ -18,7 +18,7 @@
 //! other's output relative to its own response (0 = perfect null, 1 = identical outputs).
 
 use super::config::HarmonicConfig;
-use crate::dsp::Complex;
+use crate::dsp::{Complex, VoicePitch};
 use comb::{COARSE, Comb, REFINED, Score, hann_power};
 
 mod comb;
@@ -206,6 +206,27 @@ impl Harmonic {
             comb.best(&self.candidates[lo..hi], &prefer, &mut best);
         }
         self.pitch_of(best.0, best.1)
+    }
+
+    /// The pitch of `mag` (read as [`Harmonic::pitch`] reads it) when its F0 and voicing are
+    /// known: only the comb's salience there is measured.
+    pub fn known_pitch(
+        &self,
+        mag: &[f64],
+        reliability: &[f64],
+        known: VoicePitch,
+        scratch: &mut Vec<[f64; 4]>,
+    ) -> Pitch {
+        let voiced = known.f0 > 0.0 && known.voicing > 0.0 && known.f0.is_finite();
+        let comb = Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch);
+        match comb {
+            Some(comb) if voiced => Pitch {
+                f0: known.f0,
+                voicing: known.voicing.clamp(0.0, 1.0),
+                salience: comb.score(known.f0).1.max(0.0),
+            },
+            _ => Pitch::default(),
+        }
     }
 
     /// The exhaustive search over every candidate (the reference of [`Harmonic::pitch`]).

@@ -313,3 +313,27 @@ fn leakage_follows_the_steering_correlation_and_loading() {
     let l = leakage(&a, &b, 0.01);
     assert!(l > 0.0 && l < 1.0 && leakage(&a, &b, 0.1) > l);
 }
+
+#[test]
+fn a_known_pitch_is_kept_and_its_combs_salience_measured() {
+    let h = harmonic();
+    let rel = vec![1.0; N / 2 + 1];
+    let mag = spectrum(&voiced(150.0, 1.0));
+    let mut scratch = Vec::new();
+    let known = |f0, voicing| VoicePitch { f0, voicing };
+    let right = h.known_pitch(&mag, &rel, known(150.0, 0.8), &mut scratch);
+    assert_eq!((right.f0, right.voicing), (150.0, 0.8));
+    // The comb measured at the known F0 is the one the search would find; at a pitch the
+    // spectrum does not carry it is far weaker.
+    let searched = h.pitch(&mag, &rel, &Register::default(), &mut scratch);
+    assert!(
+        (right.salience / searched.salience - 1.0).abs() < 0.05,
+        "{right:?} {searched:?}"
+    );
+    let wrong = h.known_pitch(&mag, &rel, known(190.0, 1.0), &mut scratch);
+    assert!(wrong.salience < 0.2 * right.salience, "{wrong:?} {right:?}");
+    // Unvoiced (or nonsense) known pitches give no comb.
+    for k in [known(150.0, 0.0), known(0.0, 1.0), known(f64::NAN, 1.0)] {
+        assert_eq!(h.known_pitch(&mag, &rel, k, &mut scratch), Pitch::default());
+    }
+}

@@ -30,12 +30,14 @@ impl Separator {
                         self.streams[j].direction_only = t.direction_only;
                     }
                     self.streams[j].presence = presence;
+                    self.streams[j].known_pitch = t.pitch;
                     present[j] = true;
                 }
                 None if finite => {
                     let mut s =
                         Stream::new(t.label, t.position, t.direction_only, self.groups.len());
                     s.presence = presence;
+                    s.known_pitch = t.pitch;
                     self.streams.push(s);
                     present.push(true);
                 }
@@ -48,6 +50,7 @@ impl Separator {
             if !p {
                 // Steering at a stale position: do not learn.
                 s.presence = 1.0;
+                s.known_pitch = None;
             }
         }
     }

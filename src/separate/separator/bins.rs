@@ -361,15 +361,17 @@ impl Separator {
                 let r = 1.0 - w.frame_unresolved[k * n + i];
                 w.reliability[k] = r * r;
             }
-            w.pitch.push(if w.priors[i] > 0.0 {
-                self.harmonic.pitch(
-                    &w.mag,
-                    &w.reliability,
-                    &self.streams[i].register,
-                    &mut w.pitch_table,
-                )
-            } else {
-                Pitch::default()
+            let s = &self.streams[i];
+            w.pitch.push(match (w.priors[i] > 0.0, s.known_pitch) {
+                (false, _) => Pitch::default(),
+                (true, Some(known)) => {
+                    self.harmonic
+                        .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table)
+                }
+                (true, None) => {
+                    self.harmonic
+                        .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table)
+                }
             });
         }
         w.ownership.resize(n, 0.0);
