@@ -8,8 +8,9 @@
 /// (the paper's absolute threshold).
 const THRESHOLD: f64 = 0.2;
 /// Aperiodicity (the normalised difference at the period) at or below which a frame counts as
-/// fully voiced, and at or above which as unvoiced; linear between.
+/// fully voiced (voicing 1); voicing falls linearly from there to 0 at `UNVOICED_ABOVE`.
 const VOICED_BELOW: f64 = 0.2;
+/// Aperiodicity at or above which a frame counts as unvoiced.
 const UNVOICED_ABOVE: f64 = 0.6;
 /// A frame whose energy is this far below the signal's loudest frame counts as silent.
 const SILENCE_BELOW_MAX: f64 = 1e-4;

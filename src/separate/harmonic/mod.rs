@@ -217,15 +217,16 @@ impl Harmonic {
         known: VoicePitch,
         scratch: &mut Vec<[f64; 4]>,
     ) -> Pitch {
-        let voiced = known.f0 > 0.0 && known.voicing > 0.0 && known.f0.is_finite();
-        let comb = Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch);
-        match comb {
-            Some(comb) if voiced => Pitch {
+        if !(known.f0 > 0.0 && known.voicing > 0.0 && known.f0.is_finite()) {
+            return Pitch::default();
+        }
+        match Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) {
+            Some(comb) => Pitch {
                 f0: known.f0,
                 voicing: known.voicing.clamp(0.0, 1.0),
                 salience: comb.score(known.f0).1.max(0.0),
             },
-            _ => Pitch::default(),
+            None => Pitch::default(),
         }
     }
 
