@@ -261,21 +261,7 @@ fn adapt_sized<F: MulAdd>(
     let (hr, hi) = scratch[..2 * lp].split_at_mut(lp);
     let lam = 1.0 - (1.0 - step.forgetting) * beta;
     let sc = f64::from(*scale);
-    // h = P u (the true inverse correlation is sc P). P is Hermitian, so
-    // (P u)_i = sum_j conj(P_ji) u_j: an axpy over contiguous rows. (The Hermitian structure of
-    // P only matters in its own update, so fused products are fine here.)
-    for i in 0..lp {
-        hr[i] = 0.0;
-        hi[i] = 0.0;
-    }
-    for j in 0..lp {
-        let (xr, xi) = (ur[j], ui[j]);
-        let (rr, ri) = (&pr[j * lp..(j + 1) * lp], &pi[j * lp..(j + 1) * lp]);
-        for i in 0..lp {
-            hr[i] = F::madd(rr[i], xr, F::madd(ri[i], xi, hr[i]));
-            hi[i] = F::madd(rr[i], xi, F::madd(-ri[i], xr, hi[i]));
-        }
-    }
+    times_p::<F>(pr, pi, lp, (ur, ui), (hr, hi));
     // The conversion term u^H (sc P) u is real for a Hermitian P.
     let mut upu = 0.0f64;
     for i in 0..lp {
@@ -296,32 +282,86 @@ fn adapt_sized<F: MulAdd>(
     let sg = (g * sc).sqrt() as Real;
     hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= sg);
     rank_one_down(pr, pi, lp, hr, hi);
-    let mut sc = sc / lam;
-    // Leakage, every LEAK_EVERY-th call with a correspondingly larger step: R += c e_j e_j^H,
-    // i.e. with q = sc P e_j: sc P -= c q q^H / (1 + c q_j), and the weights move to the
-    // regularised solution V -= c q V_j / (1 + c q_j).
+    let sc = sc / lam;
+    // Leakage every LEAK_EVERY-th call, with a correspondingly larger step.
     let c = step.leakage * power.max(POWER_FLOOR) * (d.l * LEAK_EVERY) as f64 * beta;
     if c > 0.0 && leak_index % LEAK_EVERY == 0 {
         let j = (leak_index / LEAK_EVERY) % d.l;
-        // Column j of P is the conjugate of row j.
-        for i in 0..lp {
-            hr[i] = pr[j * lp + i];
-            hi[i] = -pi[j * lp + i];
-        }
-        let s = c / (1.0 + c * sc * f64::from(hr[j]));
-        let (wr, wi) = (
-            (s * sc * f64::from(vr[j])) as Real,
-            (s * sc * f64::from(vi[j])) as Real,
-        );
-        for i in 0..lp {
-            vr[i] -= hr[i] * wr - hi[i] * wi;
-            vi[i] -= hr[i] * wi + hi[i] * wr;
-        }
-        let ss = (s * sc).sqrt() as Real;
-        hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= ss);
-        rank_one_down(pr, pi, lp, hr, hi);
+        leak((pr, pi), (vr, vi), lp, j, c, sc, (hr, hi));
     }
-    // Fold the scale back into P before it drifts far from 1.
+    settle((pr, pi), (vr, vi), scale, sc, d.l, lp, step.max_norm2)
+}
+
+/// h = P u (the true inverse correlation is sc P). P is Hermitian, so
+/// (P u)_i = sum_j conj(P_ji) u_j: an axpy over contiguous rows. (The Hermitian structure of
+/// P only matters in its own update, so fused products are fine here.)
+#[inline(always)]
+fn times_p<F: MulAdd>(
+    pr: &[Real],
+    pi: &[Real],
+    lp: usize,
+    (ur, ui): (&[Real], &[Real]),
+    (hr, hi): (&mut [Real], &mut [Real]),
+) {
+    for i in 0..lp {
+        hr[i] = 0.0;
+        hi[i] = 0.0;
+    }
+    for j in 0..lp {
+        let (xr, xi) = (ur[j], ui[j]);
+        let (rr, ri) = (&pr[j * lp..(j + 1) * lp], &pi[j * lp..(j + 1) * lp]);
+        for i in 0..lp {
+            hr[i] = F::madd(rr[i], xr, F::madd(ri[i], xi, hr[i]));
+            hi[i] = F::madd(rr[i], xi, F::madd(-ri[i], xr, hi[i]));
+        }
+    }
+}
+
+/// Leakage on coordinate `j` with weight `c`: R += c e_j e_j^H, i.e. with q = sc P e_j:
+/// sc P -= c q q^H / (1 + c q_j), and the weights move to the regularised solution
+/// V -= c q V_j / (1 + c q_j). `hr`, `hi` are scratch.
+#[inline(always)]
+fn leak(
+    (pr, pi): (&mut [Real], &mut [Real]),
+    (vr, vi): (&mut [Real], &mut [Real]),
+    lp: usize,
+    j: usize,
+    c: f64,
+    sc: f64,
+    (hr, hi): (&mut [Real], &mut [Real]),
+) {
+    // Column j of P is the conjugate of row j.
+    for i in 0..lp {
+        hr[i] = pr[j * lp + i];
+        hi[i] = -pi[j * lp + i];
+    }
+    let s = c / (1.0 + c * sc * f64::from(hr[j]));
+    let (wr, wi) = (
+        (s * sc * f64::from(vr[j])) as Real,
+        (s * sc * f64::from(vi[j])) as Real,
+    );
+    for i in 0..lp {
+        vr[i] -= hr[i] * wr - hi[i] * wi;
+        vi[i] -= hr[i] * wi + hi[i] * wr;
+    }
+    let ss = (s * sc).sqrt() as Real;
+    hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= ss);
+    rank_one_down(pr, pi, lp, hr, hi);
+}
+
+/// Ends a step with scale `sc`: folds it back into P before it drifts far from 1, bounds the
+/// weights' norm by `max_norm2`, and reports whether the state is still finite with a positive
+/// diagonal over the `l` used coordinates.
+#[inline(always)]
+fn settle(
+    (pr, pi): (&mut [Real], &mut [Real]),
+    (vr, vi): (&mut [Real], &mut [Real]),
+    scale: &mut Real,
+    mut sc: f64,
+    l: usize,
+    lp: usize,
+    max_norm2: f64,
+) -> bool {
     if !(1e-6..=1e6).contains(&sc) {
         let f = sc as Real;
         pr.iter_mut().chain(pi.iter_mut()).for_each(|x| *x *= f);
@@ -329,13 +369,13 @@ fn adapt_sized<F: MulAdd>(
     }
     *scale = sc as Real;
     let n2: f64 = vr.iter().chain(vi.iter()).map(|&x| f64::from(x * x)).sum();
-    if n2 > step.max_norm2 {
-        let s = (step.max_norm2 / n2).sqrt() as Real;
+    if n2 > max_norm2 {
+        let s = (max_norm2 / n2).sqrt() as Real;
         vr.iter_mut().chain(vi.iter_mut()).for_each(|x| *x *= s);
     }
     let mut trace = 0.0f64;
     let mut smallest = f64::INFINITY;
-    for i in 0..d.l {
+    for i in 0..l {
         let p = f64::from(pr[i * lp + i]);
         trace += p;
         smallest = smallest.min(p);

@@ -15,7 +15,7 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 
 use super::config::VoiceConfig;
-use super::syllables::{Band, BandPass, Syllable, plan_phrase};
+use super::syllables::{Band, BandPass, Syllable, Targets, plan_phrase};
 
 /// Nominal RMS of speech at 0 dB `level_db`, over the samples where the talker speaks.
 pub const NOMINAL_RMS: f64 = 0.1;
@@ -150,25 +150,11 @@ fn render_phrase<R: Rng + ?Sized>(
 ) -> Vec<f64> {
     let syllables = plan_phrase(voice, len, fs, rng);
     let base_f0 = voice.f0_hz * 2f64.powf(rng.sample::<f64, _>(StandardNormal) * 0.08);
-    let bw_scale = voice.formant_scale.sqrt();
-    let upper: Vec<f64> = UPPER_FORMANTS
-        .iter()
-        .map(|f| f * voice.formant_scale)
-        .filter(|f| *f < 0.42 * fs)
-        .collect();
-    let k = |tau: f64| 1.0 - (-1.0 / (tau * fs)).exp();
-    let (k_formant, k_pitch, k_amp) = (k(0.025), k(0.04), k(0.005));
-
-    let (mut voiced, mut noise) = (vec![0.0; len], vec![0.0; len]);
-    let mut tract = [Resonator::default(); 6];
-    let mut glottis = Glottis::new();
-    let mut band_filter = BandPass::default();
-    let mut band: Option<Band> = None;
-    let mut formants = syllables
+    let first_vowel = syllables
         .first()
         .map_or([500.0, 1500.0, 2500.0, 3500.0], |s| s.vowel);
-    let mut pitch_st = voice.f0_range_st * 0.4;
-    let (mut av, mut an, mut ah) = (0.0, 0.0, 0.0);
+    let mut tract = Tract::new(voice, fs, base_f0, first_vowel);
+    let (mut voiced, mut noise) = (vec![0.0; len], vec![0.0; len]);
     let (mut vowel_energy, mut vowel_count) = (0.0, 0usize);
     let mut s_idx = 0;
     for n in 0..len {
@@ -177,54 +163,134 @@ fn render_phrase<R: Rng + ?Sized>(
         }
         let syl = &syllables[s_idx];
         let t = syl.targets(n, voice.formant_scale, fs);
-        // Smooth glides of formants, pitch and amplitudes (frication attacks at once).
-        for (f, target) in formants.iter_mut().zip(t.formants) {
-            *f += k_formant * (target - *f);
-        }
         let last = s_idx + 1 == syllables.len();
-        let st = pitch_target(voice, syl, n as f64 / len as f64, last);
-        pitch_st += k_pitch * (st - pitch_st);
-        av += k_amp * (t.voicing - av);
-        an += if t.frication > an {
-            t.frication - an
-        } else {
-            k_amp * (t.frication - an)
-        };
-        ah += k_amp * (t.aspiration - ah);
-        if t.band.is_some() {
-            band = t.band;
+        tract.glide(&t, pitch_target(voice, syl, n as f64 / len as f64, last));
+        voiced[n] = tract.voiced(t.nasal, rng);
+        if t.vowel {
+            vowel_energy += voiced[n] * voiced[n];
+            vowel_count += 1;
         }
+        noise[n] = tract.frication(rng);
+    }
+    // Frication levels are relative to the RMS of the vowels of this phrase.
+    let vowel_rms = (vowel_energy / vowel_count.max(1) as f64).sqrt();
+    faded_mix(&voiced, &noise, vowel_rms, fs)
+}
 
-        let f0 = (base_f0 * 2f64.powf(pitch_st / 12.0)).clamp(50.0, 500.0);
-        let (pulse, flow) = glottis.step(f0, voice.open_quotient, fs, rng);
+/// The voice's state while it renders a phrase: the glottis, the formant resonators and the
+/// frication filter, with the formants, pitch and amplitudes gliding toward each sample's
+/// targets.
+struct Tract<'a> {
+    voice: &'a VoiceConfig,
+    fs: f64,
+    base_f0: f64,
+    /// Fixed upper formants (Hz) below the Nyquist margin.
+    upper: Vec<f64>,
+    bw_scale: f64,
+    /// One-pole glide coefficients per sample of the formants, the pitch and the amplitudes.
+    k_formant: f64,
+    k_pitch: f64,
+    k_amp: f64,
+    resonators: [Resonator; 6],
+    glottis: Glottis,
+    band_filter: BandPass,
+    band: Option<Band>,
+    formants: [f64; 4],
+    /// Pitch in semitones from `base_f0`.
+    pitch_st: f64,
+    /// Voicing, frication and aspiration amplitudes.
+    av: f64,
+    an: f64,
+    ah: f64,
+}
+
+impl<'a> Tract<'a> {
+    fn new(voice: &'a VoiceConfig, fs: f64, base_f0: f64, formants: [f64; 4]) -> Self {
+        let k = |tau: f64| 1.0 - (-1.0 / (tau * fs)).exp();
+        Self {
+            voice,
+            fs,
+            base_f0,
+            upper: UPPER_FORMANTS
+                .iter()
+                .map(|f| f * voice.formant_scale)
+                .filter(|f| *f < 0.42 * fs)
+                .collect(),
+            bw_scale: voice.formant_scale.sqrt(),
+            k_formant: k(0.025),
+            k_pitch: k(0.04),
+            k_amp: k(0.005),
+            resonators: [Resonator::default(); 6],
+            glottis: Glottis::new(),
+            band_filter: BandPass::default(),
+            band: None,
+            formants,
+            pitch_st: voice.f0_range_st * 0.4,
+            av: 0.0,
+            an: 0.0,
+            ah: 0.0,
+        }
+    }
+
+    /// Smooth glides of formants, pitch (toward `pitch_st`) and amplitudes toward the
+    /// targets `t`; frication attacks at once.
+    fn glide(&mut self, t: &Targets, pitch_st: f64) {
+        for (f, target) in self.formants.iter_mut().zip(t.formants) {
+            *f += self.k_formant * (target - *f);
+        }
+        self.pitch_st += self.k_pitch * (pitch_st - self.pitch_st);
+        self.av += self.k_amp * (t.voicing - self.av);
+        self.an += if t.frication > self.an {
+            t.frication - self.an
+        } else {
+            self.k_amp * (t.frication - self.an)
+        };
+        self.ah += self.k_amp * (t.aspiration - self.ah);
+        if t.band.is_some() {
+            self.band = t.band;
+        }
+    }
+
+    /// One sample of the glottal source with breath and aspiration noise through the formant
+    /// cascade (F1 widened when `nasal`).
+    fn voiced<R: Rng + ?Sized>(&mut self, nasal: bool, rng: &mut R) -> f64 {
+        let fs = self.fs;
+        let f0 = (self.base_f0 * 2f64.powf(self.pitch_st / 12.0)).clamp(50.0, 500.0);
+        let (pulse, flow) = self.glottis.step(f0, self.voice.open_quotient, fs, rng);
         let white: f64 = rng.sample(StandardNormal);
-        let breath = voice.breathiness * 0.02 * white * (0.3 + flow);
-        let mut y = av * (pulse + breath) + ah * 0.03 * white;
-        let freqs = formants.iter().chain(&upper);
-        for (i, (r, f)) in tract.iter_mut().zip(freqs).enumerate() {
-            let bw = if t.nasal && i == 0 {
+        let breath = self.voice.breathiness * 0.02 * white * (0.3 + flow);
+        let mut y = self.av * (pulse + breath) + self.ah * 0.03 * white;
+        let freqs = self.formants.iter().chain(&self.upper);
+        for (i, (r, f)) in self.resonators.iter_mut().zip(freqs).enumerate() {
+            let bw = if nasal && i == 0 {
                 150.0
             } else {
-                BANDWIDTHS[i] * bw_scale
+                BANDWIDTHS[i] * self.bw_scale
             };
             y = r.step(y, *f, bw, fs);
         }
-        voiced[n] = y;
-        if t.vowel {
-            vowel_energy += y * y;
-            vowel_count += 1;
-        }
-        match band {
-            Some(b) if an > 1e-6 => {
-                let white2: f64 = rng.sample(StandardNormal);
-                noise[n] = an * b.level * band_filter.step(white2, b.centre, b.q, fs) / b.gain;
+        y
+    }
+
+    /// One sample of band-pass frication noise (relative to the vowels' RMS), 0 without any.
+    fn frication<R: Rng + ?Sized>(&mut self, rng: &mut R) -> f64 {
+        match self.band {
+            Some(b) if self.an > 1e-6 => {
+                let white: f64 = rng.sample(StandardNormal);
+                self.an * b.level * self.band_filter.step(white, b.centre, b.q, self.fs) / b.gain
             }
-            _ => band_filter = BandPass::default(),
+            _ => {
+                self.band_filter = BandPass::default();
+                0.0
+            }
         }
     }
-    // Frication levels are relative to the RMS of the vowels of this phrase; the phrase fades in
-    // and out over 10 ms so that it starts and ends at zero.
-    let vowel_rms = (vowel_energy / vowel_count.max(1) as f64).sqrt();
+}
+
+/// `voiced` plus `vowel_rms` times `noise`, faded in and out over 10 ms so that the phrase
+/// starts and ends at zero.
+fn faded_mix(voiced: &[f64], noise: &[f64], vowel_rms: f64, fs: f64) -> Vec<f64> {
+    let len = voiced.len();
     let ramp = (0.01 * fs) as usize;
     (0..len)
         .map(|n| {
