@@ -173,6 +173,57 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     server.stop().await;
 }
 
+/// A REST client of the test server with the admin key and a valid session-creation body.
+struct Rest {
+    host: String,
+    key: &'static str,
+    body: Vec<u8>,
+}
+
+type Response = avsep::server::client::HttpResponse;
+type Created = avsep::protocol::rest::SessionCreated;
+
+impl Rest {
+    async fn call(
+        &self,
+        method: &str,
+        path: &str,
+        auth: Option<&str>,
+        body: Option<&[u8]>,
+    ) -> Response {
+        http(&self.host, method, path, auth, body).await.unwrap()
+    }
+
+    async fn post(&self, auth: Option<&str>, body: &[u8]) -> Response {
+        self.call("POST", "/v1/sessions", auth, Some(body)).await
+    }
+
+    /// The valid creation body with `edit` applied, posted with the admin key.
+    async fn post_edited(&self, edit: impl FnOnce(&mut serde_json::Value)) -> Response {
+        let mut bad: serde_json::Value = serde_json::from_slice(&self.body).unwrap();
+        edit(&mut bad);
+        self.post(Some(self.key), &serde_json::to_vec(&bad).unwrap())
+            .await
+    }
+
+    async fn send_json(
+        &self,
+        method: &str,
+        path: String,
+        token: &str,
+        b: serde_json::Value,
+    ) -> Response {
+        let b = serde_json::to_vec(&b).unwrap();
+        self.call(method, &path, Some(token), Some(&b)).await
+    }
+}
+
+fn err(r: &Response) -> ErrorBody {
+    r.json::<avsep::protocol::rest::ErrorResponse>()
+        .unwrap()
+        .error
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     let key = "an-admin-key-of-some-length";
@@ -187,126 +238,119 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
         ..ServerConfig::default()
     };
     let server = TestServer::start(cfg).await;
-    let host = server.host();
     let sc = scene("uca8", 0.5, 1, 61);
-    let body = serde_json::to_vec(&avsep::server::client::create_body(&sc.layout, None)).unwrap();
-    let post = |auth: Option<&'static str>, b: Vec<u8>| {
-        let host = host.clone();
-        async move {
-            http(&host, "POST", "/v1/sessions", auth, Some(&b))
-                .await
-                .unwrap()
-        }
+    let rest = Rest {
+        host: server.host(),
+        key,
+        body: serde_json::to_vec(&avsep::server::client::create_body(&sc.layout, None)).unwrap(),
     };
-    let err = |r: &avsep::server::client::HttpResponse| -> ErrorBody {
-        r.json::<avsep::protocol::rest::ErrorResponse>()
-            .unwrap()
-            .error
-    };
+    credentials_are_checked(&rest).await;
+    bad_bodies_are_named(&rest).await;
+    let s = session_access_needs_its_token(&rest).await;
+    bad_stream_upgrades_are_refused(&rest, &s).await;
+    impossible_changes_are_refused(&rest, &s, &sc).await;
 
-    // Credentials: missing 401, wrong 403, never data.
-    let r = post(None, body.clone()).await;
+    // Capacity: max_sessions = 2.
+    assert_eq!(rest.post(Some(key), &rest.body).await.status, 201);
+    let r = rest.post(Some(key), &rest.body).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (503, "at_capacity"));
+    assert_eq!(rest.call("GET", "/readyz", None, None).await.status, 503);
+    let r = rest.call("GET", "/v1/nothing", None, None).await;
+    assert_eq!((r.status, err(&r).code.as_str()), (404, "not_found"));
+    server.stop().await;
+}
+
+/// Credentials: missing 401, wrong 403, never data.
+async fn credentials_are_checked(rest: &Rest) {
+    let r = rest.post(None, &rest.body).await;
     assert_eq!((r.status, err(&r).code.as_str()), (401, "unauthorized"));
-    let r = post(Some("wrong-key-wrong-key"), body.clone()).await;
+    let r = rest.post(Some("wrong-key-wrong-key"), &rest.body).await;
     assert_eq!((r.status, err(&r).code.as_str()), (403, "forbidden"));
-    let r = http(&host, "GET", "/v1/sessions", None, None)
-        .await
-        .unwrap();
+    let r = rest.call("GET", "/v1/sessions", None, None).await;
     assert_eq!(r.status, 401);
     assert!(!r.text().contains("sessions\":["));
+}
 
-    // Body problems: malformed 400, wrong shape 422 naming the field, too large 413.
-    let r = post(Some(key), b"{\"sample_rate\": ".to_vec()).await;
+/// Body problems: malformed 400, wrong shape 422 naming the field, too large 413.
+async fn bad_bodies_are_named(rest: &Rest) {
+    let r = rest.post(Some(rest.key), b"{\"sample_rate\": ").await;
     assert_eq!((r.status, err(&r).code.as_str()), (400, "bad_json"));
-    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    bad["arrays"][0]["mics"][2] = serde_json::json!([0.0, 0.0]);
-    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    let r = rest
+        .post_edited(|b| b["arrays"][0]["mics"][2] = serde_json::json!([0.0, 0.0]))
+        .await;
     assert_eq!(
         (r.status, err(&r).field.as_deref()),
         (422, Some("arrays[0].mics[2]"))
     );
-    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    bad["cameras"][0]["projection"] = serde_json::Value::Null;
-    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    let r = rest
+        .post_edited(|b| b["cameras"][0]["projection"] = serde_json::Value::Null)
+        .await;
     assert_eq!(
         (r.status, err(&r).field.as_deref()),
         (422, Some("cameras[0].projection"))
     );
-    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    bad["settings"] = serde_json::json!({"track": {"survival_probability": 3.0}});
-    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    let r = rest
+        .post_edited(|b| {
+            b["settings"] = serde_json::json!({"track": {"survival_probability": 3.0}});
+        })
+        .await;
     assert_eq!(r.status, 422, "{}", r.text());
     assert_eq!(
         err(&r).field.as_deref(),
         Some("settings.track.survival_probability")
     );
-    let mut bad: serde_json::Value = serde_json::from_slice(&body).unwrap();
-    bad["settings"] = serde_json::json!({"stepsize": 1});
-    let r = post(Some(key), serde_json::to_vec(&bad).unwrap()).await;
+    let r = rest
+        .post_edited(|b| b["settings"] = serde_json::json!({"stepsize": 1}))
+        .await;
     assert!(
         r.status == 422 && err(&r).message.contains("stepsize"),
         "{}",
         r.text()
     );
-    let r = post(Some(key), vec![b' '; 70 << 10]).await;
+    let r = rest.post(Some(rest.key), &vec![b' '; 70 << 10]).await;
     assert_eq!((r.status, err(&r).code.as_str()), (413, "too_large"));
+}
 
-    // A session: its token opens it; a wrong one gets 403 and unknown ids 404.
-    let r = post(Some(key), body.clone()).await;
+/// A session: its token (or the admin key) opens it, also as a query parameter; a wrong one
+/// gets 403 and unknown ids 404; deleting needs the admin key.
+async fn session_access_needs_its_token(rest: &Rest) -> Created {
+    let r = rest.post(Some(rest.key), &rest.body).await;
     assert_eq!(r.status, 201);
-    let s: avsep::protocol::rest::SessionCreated = r.json().unwrap();
+    let s: Created = r.json().unwrap();
     let path = format!("/v1/sessions/{}", s.id);
     assert_eq!(
-        http(&host, "GET", &path, Some(&s.token), None)
-            .await
-            .unwrap()
-            .status,
+        rest.call("GET", &path, Some(&s.token), None).await.status,
         200
     );
     assert_eq!(
-        http(&host, "GET", &path, Some(key), None)
-            .await
-            .unwrap()
-            .status,
+        rest.call("GET", &path, Some(rest.key), None).await.status,
         200
     );
-    let r = http(&host, "GET", &path, None, None).await.unwrap();
-    assert_eq!(r.status, 401);
-    let r = http(&host, "GET", &path, Some(&s.token[..63]), None)
-        .await
-        .unwrap();
+    assert_eq!(rest.call("GET", &path, None, None).await.status, 401);
+    let r = rest.call("GET", &path, Some(&s.token[..63]), None).await;
     assert_eq!(r.status, 403);
     assert!(!r.text().contains(&s.id) || err(&r).code == "forbidden");
-    let r = http(
-        &host,
-        "GET",
-        &format!("{path}?token={}", s.token),
-        None,
-        None,
-    )
-    .await
-    .unwrap();
+    let r = rest
+        .call("GET", &format!("{path}?token={}", s.token), None, None)
+        .await;
     assert_eq!(r.status, 200, "the token also works as a query parameter");
-    let r = http(
-        &host,
-        "GET",
-        "/v1/sessions/0000000000000000",
-        Some(key),
-        None,
-    )
-    .await
-    .unwrap();
+    let r = rest
+        .call("GET", "/v1/sessions/0000000000000000", Some(rest.key), None)
+        .await;
     assert_eq!((r.status, err(&r).code.as_str()), (404, "not_found"));
-    let r = http(&host, "DELETE", &path, Some(&s.token), None)
-        .await
-        .unwrap();
+    let r = rest.call("DELETE", &path, Some(&s.token), None).await;
     assert_eq!(
         r.status, 403,
         "deleting needs the admin key when one is configured"
     );
+    s
+}
 
-    // Streams: wrong or missing token refused before the upgrade.
-    let url = format!("ws://{host}{}", s.stream);
+/// Streams: a wrong or missing token is refused before the upgrade, a plain GET is not a
+/// WebSocket, and one client is allowed (limits.max_clients_per_session = 1): the second
+/// gets 429.
+async fn bad_stream_upgrades_are_refused(rest: &Rest, s: &Created) {
+    let url = format!("ws://{}{}", rest.host, s.stream);
     let e = avsep::server::client::connect(&url, "nope")
         .await
         .unwrap_err();
@@ -315,17 +359,9 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
         .await
         .unwrap_err();
     assert!(e.to_string().contains("401"), "{e}");
-    let r = http(
-        &host,
-        "GET",
-        &format!("{path}/stream"),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
+    let path = format!("/v1/sessions/{}/stream", s.id);
+    let r = rest.call("GET", &path, Some(&s.token), None).await;
     assert_eq!((r.status, err(&r).code.as_str()), (400, "not_websocket"));
-    // One client allowed (limits.max_clients_per_session = 1): the second gets 429.
     let first = avsep::server::client::connect(&url, &s.token)
         .await
         .unwrap();
@@ -334,23 +370,13 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
         .unwrap_err();
     assert!(e.0.contains("429"), "{e}");
     drop(first);
+}
 
-    // Calibration and settings: unknown sensors 404, changes that cannot happen live 409,
-    // invalid values 422.
-    let put = |p: String, b: serde_json::Value| {
-        let (host, token) = (host.clone(), s.token.clone());
-        async move {
-            http(
-                &host,
-                "PUT",
-                &p,
-                Some(&token),
-                Some(&serde_json::to_vec(&b).unwrap()),
-            )
-            .await
-            .unwrap()
-        }
-    };
+/// Calibration and settings: unknown sensors 404, changes that cannot happen live 409,
+/// invalid values 422.
+async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::scene::Scene) {
+    let path = format!("/v1/sessions/{}", s.id);
+    let put = |p: String, b: serde_json::Value| rest.send_json("PUT", p, &s.token, b);
     let r = put(
         format!("{path}/cameras/cam9"),
         serde_json::json!({"projection": [[1,0,0,0],[0,1,0,0],[0,0,1,0]]}),
@@ -374,20 +400,8 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
         (r.status, err(&r).field.as_deref()),
         (422, Some("translation"))
     );
-    let patch = |b: serde_json::Value| {
-        let (host, token, p) = (host.clone(), s.token.clone(), format!("{path}/settings"));
-        async move {
-            http(
-                &host,
-                "PATCH",
-                &p,
-                Some(&token),
-                Some(&serde_json::to_vec(&b).unwrap()),
-            )
-            .await
-            .unwrap()
-        }
-    };
+    let settings = format!("{path}/settings");
+    let patch = |b: serde_json::Value| rest.send_json("PATCH", settings.clone(), &s.token, b);
     let r = patch(serde_json::json!({"step_s": 0.064})).await;
     assert_eq!(
         (r.status, err(&r).code.as_str(), err(&r).field.as_deref()),
@@ -406,14 +420,4 @@ async fn bad_rest_requests_get_statuses_that_name_the_problem() {
     let r = patch(serde_json::json!({"bogus": 1})).await;
     assert_eq!(r.status, 422);
     assert!(err(&r).message.contains("bogus"));
-
-    // Capacity: max_sessions = 2.
-    assert_eq!(post(Some(key), body.clone()).await.status, 201);
-    let r = post(Some(key), body.clone()).await;
-    assert_eq!((r.status, err(&r).code.as_str()), (503, "at_capacity"));
-    let r = http(&host, "GET", "/readyz", None, None).await.unwrap();
-    assert_eq!(r.status, 503);
-    let r = http(&host, "GET", "/v1/nothing", None, None).await.unwrap();
-    assert_eq!((r.status, err(&r).code.as_str()), (404, "not_found"));
-    server.stop().await;
 }
