@@ -20,6 +20,50 @@ use avsep::server::session::SessionSpec;
 use avsep::server::{ServerConfig, client::create_body};
 use server_support::{TestServer, assert_same_tracks, offline, scene, settings};
 
+/// One session's REST resources under its token.
+struct SessionApi {
+    host: String,
+    path: String,
+    token: String,
+}
+
+impl SessionApi {
+    /// `method` on the session's `sub` path (`""` for the session itself) with a JSON body.
+    async fn call(
+        &self,
+        method: &str,
+        sub: &str,
+        body: Option<serde_json::Value>,
+    ) -> avsep::server::client::HttpResponse {
+        let body = body.map(|b| serde_json::to_vec(&b).unwrap());
+        let path = format!("{}{sub}", self.path);
+        http(
+            &self.host,
+            method,
+            &path,
+            Some(&self.token),
+            body.as_deref(),
+        )
+        .await
+        .unwrap()
+    }
+
+    /// Polls the current tracks until step `step` has run.
+    async fn wait_for_step(&self, step: u64) -> TracksSnapshot {
+        for _ in 0..100 {
+            let r = self.call("GET", "/tracks", None).await;
+            if r.status == 200 {
+                let t: TracksSnapshot = r.json().unwrap();
+                if t.step >= step {
+                    return t;
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        panic!("the pipeline did not reach step {step}");
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn live_recalibration_settings_history_metrics_and_deletion() {
     let cfg = ServerConfig {
@@ -30,25 +74,15 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     let host = server.host();
     let sc = scene("uca8", 3.0, 2, 71);
     let s = server.create(&sc, settings(4), None).await;
-    let path = format!("/v1/sessions/{}", s.id);
-    let url = server.ws_url(&s);
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let listener = {
-        let (url, token) = (url.clone(), s.token.clone());
-        tokio::spawn(async move {
-            listen(
-                &url,
-                &token,
-                OutputSelection::default(),
-                Duration::from_secs(120),
-                Some(ready_tx),
-            )
-            .await
-        })
+    let api = SessionApi {
+        host: host.clone(),
+        path: format!("/v1/sessions/{}", s.id),
+        token: s.token.clone(),
     };
-    ready_rx.await.unwrap();
+    let url = server.ws_url(&s);
+    let listener = spawn_listener(url.clone(), s.token.clone(), 120).await;
 
-    // First half of the scene.
+    // First half of the scene, then let the pipeline catch up with what was sent.
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
     let half = feed
         .iter()
@@ -61,93 +95,12 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     };
     let first = stream_feed(&url, &s.token, &feed, &opts).await.unwrap();
     assert!(first.errors.is_empty(), "{:?}", first.errors);
-    // Let the pipeline catch up with what was sent.
-    let mut before: Option<TracksSnapshot> = None;
-    for _ in 0..100 {
-        let r = http(
-            &host,
-            "GET",
-            &format!("{path}/tracks"),
-            Some(&s.token),
-            None,
-        )
-        .await
-        .unwrap();
-        if r.status == 200 {
-            let t: TracksSnapshot = r.json().unwrap();
-            if t.step + 1 >= 24576 / 2048 - 2 {
-                before = Some(t);
-                break;
-            }
-        }
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-    let before = before.expect("the pipeline ran the steps of the first half");
+    let before = api.wait_for_step(24576 / 2048 - 3).await;
     assert!(
         !before.tracks.is_empty(),
         "tracks exist before the recalibration"
     );
-
-    // Move the array by 1 cm: applied at the next step, tracks kept.
-    let a0 = &sc.layout.arrays[0];
-    let moved: Vec<[f64; 3]> = a0.mics.iter().map(|m| [m.x + 0.01, m.y, m.z]).collect();
-    let body = serde_json::to_vec(&serde_json::json!({ "mics": moved })).unwrap();
-    let r = http(
-        &host,
-        "PUT",
-        &format!("{path}/arrays/{}", a0.id),
-        Some(&s.token),
-        Some(&body),
-    )
-    .await
-    .unwrap();
-    assert_eq!(r.status, 200, "{}", r.text());
-    let info: SessionInfo = r.json().unwrap();
-    assert_eq!(info.arrays[0].mics, moved);
-    // The camera: same projection as a 3x4 matrix, then as K, R, t.
-    let cam = &info.cameras[0];
-    let body = serde_json::to_vec(&serde_json::json!({ "projection": cam.projection })).unwrap();
-    let r = http(
-        &host,
-        "PUT",
-        &format!("{path}/cameras/{}", cam.id),
-        Some(&s.token),
-        Some(&body),
-    )
-    .await
-    .unwrap();
-    assert_eq!(r.status, 200, "{}", r.text());
-
-    // Settings that can change live.
-    let patch = serde_json::json!({
-        "camera_wait_s": 0.2,
-        "track": {"camera": {"p_detect": 0.8}},
-        "separate": {"post_filter": {"gain_floor": 0.2}}
-    });
-    let body = serde_json::to_vec(&patch).unwrap();
-    let r = http(
-        &host,
-        "PATCH",
-        &format!("{path}/settings"),
-        Some(&s.token),
-        Some(&body),
-    )
-    .await
-    .unwrap();
-    assert_eq!(r.status, 200, "{}", r.text());
-    let now: PipelineConfig = r.json().unwrap();
-    assert_eq!((now.camera_wait_s, now.track.camera.p_detect), (0.2, 0.8));
-    assert_eq!(now.separate.post_filter.gain_floor, 0.2);
-    let r = http(
-        &host,
-        "GET",
-        &format!("{path}/settings"),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
-    assert_eq!(r.json::<PipelineConfig>().unwrap(), now);
+    recalibrate_live(&api, &sc).await;
 
     // The rest of the scene; the tracks alive before go on after the recalibration.
     let opts = StreamOptions {
@@ -178,64 +131,11 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         3 * 16000 / 2048 + 1,
         "every step was reported"
     );
-
-    // History, metrics, Prometheus.
-    let r = http(
-        &host,
-        "GET",
-        &format!("{path}/tracks/history?from_step=3&limit=4"),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
-    let h: TrackHistory = r.json().unwrap();
-    assert_eq!(
-        h.steps.iter().map(|t| t.step).collect::<Vec<_>>(),
-        vec![3, 4, 5, 6]
-    );
-    assert_eq!(h.oldest_step, Some(0));
-    assert_eq!(h.steps, heard.tracks[3..7].to_vec());
-    let r = http(
-        &host,
-        "GET",
-        &format!("{path}/tracks/history?limit=x"),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
-    assert_eq!(r.status, 400);
-    let r = http(
-        &host,
-        "GET",
-        &format!("{path}/metrics"),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
-    let m: SessionMetrics = r.json().unwrap();
     let audio_frames = feed
         .iter()
         .filter(|i| matches!(i.message, FeedMessage::Audio { .. }))
         .count() as u64;
-    assert_eq!(m.frames_in.audio, audio_frames);
-    assert_eq!(m.frames_in.detections, sc.detections.len() as u64);
-    assert_eq!(m.steps as usize, heard.tracks.len());
-    assert!(m.real_time_factor > 0.0 && m.step_processing_ms.p50 > 0.0);
-    let r = http(&host, "GET", "/metrics", None, None).await.unwrap();
-    let text = r.text();
-    assert!(
-        text.contains(&format!(
-            "avsep_frames_in_total{{kind=\"audio\"}} {audio_frames}"
-        )),
-        "{text}"
-    );
-    assert!(text.contains("avsep_sessions{state=\"finished\"} 1"));
-    assert!(text.contains("avsep_process_resident_memory_bytes"));
-    assert!(text.contains("avsep_separation_queue_depth 0"), "{text}");
-    assert!(text.contains("avsep_separation_waits_total"), "{text}");
+    history_and_metrics_match_the_stream(&api, &heard.tracks, audio_frames, &sc).await;
 
     // CORS for the configured origin.
     let raw = raw_request(
@@ -250,30 +150,117 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     );
 
     // Deletion: 204, then gone.
-    let r = http(&host, "DELETE", &path, Some(&s.token), None)
-        .await
-        .unwrap();
-    assert_eq!(r.status, 204);
-    let r = http(&host, "GET", &path, Some(&s.token), None)
-        .await
-        .unwrap();
-    assert_eq!(r.status, 404);
+    assert_eq!(api.call("DELETE", "", None).await.status, 204);
+    assert_eq!(api.call("GET", "", None).await.status, 404);
+    deleting_a_running_session_closes_its_streams(&server, &sc).await;
+    server.stop().await;
+}
 
-    // A running session that is deleted closes its streams normally after flushing.
-    let s2 = server.create(&sc, settings(4), None).await;
-    let (url2, token2) = (server.ws_url(&s2), s2.token.clone());
+/// A listener of the session's output stream, returned once it is subscribed.
+async fn spawn_listener(
+    url: String,
+    token: String,
+    timeout_s: u64,
+) -> tokio::task::JoinHandle<
+    Result<avsep::server::client::Received, avsep::server::client::ClientError>,
+> {
     let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let l2 = tokio::spawn(async move {
+    let handle = tokio::spawn(async move {
         listen(
-            &url2,
-            &token2,
+            &url,
+            &token,
             OutputSelection::default(),
-            Duration::from_secs(60),
+            Duration::from_secs(timeout_s),
             Some(ready_tx),
         )
         .await
     });
     ready_rx.await.unwrap();
+    handle
+}
+
+/// Moves the array by 1 cm (applied at the next step, tracks kept), sets the camera's
+/// projection again, and patches the settings that can change live.
+async fn recalibrate_live(api: &SessionApi, sc: &avsep::scene::Scene) {
+    let a0 = &sc.layout.arrays[0];
+    let moved: Vec<[f64; 3]> = a0.mics.iter().map(|m| [m.x + 0.01, m.y, m.z]).collect();
+    let body = serde_json::json!({ "mics": moved });
+    let r = api
+        .call("PUT", &format!("/arrays/{}", a0.id), Some(body))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.text());
+    let info: SessionInfo = r.json().unwrap();
+    assert_eq!(info.arrays[0].mics, moved);
+    let cam = &info.cameras[0];
+    let body = serde_json::json!({ "projection": cam.projection });
+    let r = api
+        .call("PUT", &format!("/cameras/{}", cam.id), Some(body))
+        .await;
+    assert_eq!(r.status, 200, "{}", r.text());
+
+    let patch = serde_json::json!({
+        "camera_wait_s": 0.2,
+        "track": {"camera": {"p_detect": 0.8}},
+        "separate": {"post_filter": {"gain_floor": 0.2}}
+    });
+    let r = api.call("PATCH", "/settings", Some(patch)).await;
+    assert_eq!(r.status, 200, "{}", r.text());
+    let now: PipelineConfig = r.json().unwrap();
+    assert_eq!((now.camera_wait_s, now.track.camera.p_detect), (0.2, 0.8));
+    assert_eq!(now.separate.post_filter.gain_floor, 0.2);
+    let r = api.call("GET", "/settings", None).await;
+    assert_eq!(r.json::<PipelineConfig>().unwrap(), now);
+}
+
+/// The track history equals what the stream reported; the session's metrics and the
+/// Prometheus text count what was sent.
+async fn history_and_metrics_match_the_stream(
+    api: &SessionApi,
+    heard: &[TracksSnapshot],
+    audio_frames: u64,
+    sc: &avsep::scene::Scene,
+) {
+    let r = api
+        .call("GET", "/tracks/history?from_step=3&limit=4", None)
+        .await;
+    let h: TrackHistory = r.json().unwrap();
+    assert_eq!(
+        h.steps.iter().map(|t| t.step).collect::<Vec<_>>(),
+        vec![3, 4, 5, 6]
+    );
+    assert_eq!(h.oldest_step, Some(0));
+    assert_eq!(h.steps, heard[3..7].to_vec());
+    let r = api.call("GET", "/tracks/history?limit=x", None).await;
+    assert_eq!(r.status, 400);
+    let m: SessionMetrics = api.call("GET", "/metrics", None).await.json().unwrap();
+    assert_eq!(m.frames_in.audio, audio_frames);
+    assert_eq!(m.frames_in.detections, sc.detections.len() as u64);
+    assert_eq!(m.steps as usize, heard.len());
+    assert!(m.real_time_factor > 0.0 && m.step_processing_ms.p50 > 0.0);
+    let r = http(&api.host, "GET", "/metrics", None, None)
+        .await
+        .unwrap();
+    let text = r.text();
+    assert!(
+        text.contains(&format!(
+            "avsep_frames_in_total{{kind=\"audio\"}} {audio_frames}"
+        )),
+        "{text}"
+    );
+    assert!(text.contains("avsep_sessions{state=\"finished\"} 1"));
+    assert!(text.contains("avsep_process_resident_memory_bytes"));
+    assert!(text.contains("avsep_separation_queue_depth 0"), "{text}");
+    assert!(text.contains("avsep_separation_waits_total"), "{text}");
+}
+
+/// A running session that is deleted closes its streams normally after flushing.
+async fn deleting_a_running_session_closes_its_streams(
+    server: &TestServer,
+    sc: &avsep::scene::Scene,
+) {
+    let host = server.host();
+    let s2 = server.create(sc, settings(4), None).await;
+    let l2 = spawn_listener(server.ws_url(&s2), s2.token.clone(), 60).await;
     let list: avsep::protocol::rest::SessionList = http(&host, "GET", "/v1/sessions", None, None)
         .await
         .unwrap()
@@ -293,7 +280,6 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     assert_eq!(r.status, 204);
     let heard = l2.await.unwrap().unwrap();
     assert_eq!(heard.close, Some((1000, "session deleted".into())));
-    server.stop().await;
 }
 
 async fn raw_request(host: &str, req: &str) -> String {
