@@ -43,68 +43,13 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     let sc = scene("uca8", 2.0, 2, 51);
     let (tracks, _) = offline(&sc, settings(9));
     let s = server.create(&sc, settings(9), None).await;
-    let audio = sc.audio.as_ref().unwrap();
-    let ch = audio.channels;
-    let block = |first: usize, frames: usize| AudioFrame {
-        first_sample: first as u64,
-        channels: ch,
-        samples: audio.samples[first * ch..(first + frames) * ch].to_vec(),
-        encoding: SampleEncoding::F32,
-    };
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
     // Where the audio of samples [4096, 5120) is sent: bad messages go just after it.
     let k = feed
         .iter()
         .position(|i| matches!(i.message, FeedMessage::Audio { end: 5120, .. }))
         .unwrap();
-    let cam = &sc.layout.cameras[0].id;
-    let last_det_t = sc
-        .detections
-        .iter()
-        .filter(|d| d.t < 5120.0 / 16000.0)
-        .map(|d| d.t)
-        .fold(0.0, f64::max);
-
-    let wrong_channels = AudioFrame {
-        first_sample: 5120,
-        channels: 4,
-        samples: vec![0.0; 4 * 256],
-        encoding: SampleEncoding::F32,
-    }
-    .encode();
-    let good = block(5120, 1024).encode();
-    let truncated = good[..good.len() - 3].to_vec();
-    let header_only = good[..10].to_vec();
-    let oversized = AudioFrame {
-        first_sample: 5120,
-        channels: ch,
-        samples: vec![0.0; ch * 4096],
-        encoding: SampleEncoding::F32,
-    }
-    .encode();
-    assert!(oversized.len() < Limits::default().max_message_bytes);
-    let mut with_nan = block(5120, 1024);
-    with_nan.samples[3 * ch + 2] = f32::NAN;
-    let backwards = block(4096, 1024).encode();
-    let inserted = vec![
-        bad_audio(wrong_channels, 5120),
-        bad_audio(truncated, 5120),
-        bad_audio(header_only, 5120),
-        bad_audio(oversized, 5120),
-        bad_audio(with_nan.encode(), 5120),
-        bad_audio(backwards, 5120),
-        bad_json("{\"type\": \"detections\", \"t\": 0.4,"),
-        bad_json("{\"type\": \"teleport\"}"),
-        bad_json("{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}"),
-        bad_json(&format!(
-            "{{\"type\":\"detections\",\"t\":0.2,\"camera\":\"{cam}\",\"boxes\":[{{\"x\":10,\"y\":10,\"w\":-5,\"h\":10}}]}}"
-        )),
-        // Earlier than this camera's last frame: the pipeline refuses it as going backwards.
-        bad_json(&format!(
-            "{{\"type\":\"detections\",\"t\":{},\"camera\":\"{cam}\",\"boxes\":[]}}",
-            last_det_t - 0.05
-        )),
-    ];
+    let inserted = bad_messages(&sc);
     let mut with_errors = feed[..=k].to_vec();
     with_errors.extend(inserted);
     with_errors.extend(feed[k + 1..].iter().cloned());
@@ -117,43 +62,7 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     )
     .await
     .unwrap();
-    let e = &got.errors;
-    assert!(
-        find(e, "bad_channels", Some("channels"))
-            .message
-            .contains("4 channels")
-    );
-    find(e, "truncated", Some("samples"));
-    find(e, "truncated", Some("header"));
-    assert!(
-        find(e, "oversized", Some("frame_count"))
-            .message
-            .contains("limit")
-    );
-    assert!(
-        find(e, "non_finite", Some("samples"))
-            .message
-            .contains("sample 3 of channel 2")
-    );
-    assert!(
-        find(e, "time_backwards", Some("first_sample"))
-            .message
-            .contains("5120")
-    );
-    find(e, "bad_json", None);
-    let m = e
-        .iter()
-        .find(|e| e.code == "bad_message")
-        .expect("bad_message");
-    assert!(m.message.contains("teleport"), "{m:?}");
-    assert!(
-        find(e, "unknown_camera", Some("camera"))
-            .message
-            .contains("cam9")
-    );
-    find(e, "bad_box", Some("boxes[0].w"));
-    find(e, "time_backwards", Some("t"));
-    assert_eq!(e.len(), 11, "{e:#?}");
+    every_refusal_is_named(&got.errors);
 
     // Every refusal left the session untouched: the valid input around them gives exactly the
     // offline result.
@@ -420,4 +329,107 @@ async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::sc
     let r = patch(serde_json::json!({"bogus": 1})).await;
     assert_eq!(r.status, 422);
     assert!(err(&r).message.contains("bogus"));
+}
+
+/// One bad message of each kind, to send just after the audio of samples [4096, 5120) of `sc`:
+/// six audio frames (wrong channel count, truncated, header only, over the size limit, NaN
+/// sample, going backwards) and five JSON messages (malformed, unknown type, unknown camera,
+/// negative box width, detections going backwards).
+fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
+    let audio = sc.audio.as_ref().unwrap();
+    let ch = audio.channels;
+    let block = |first: usize, frames: usize| AudioFrame {
+        first_sample: first as u64,
+        channels: ch,
+        samples: audio.samples[first * ch..(first + frames) * ch].to_vec(),
+        encoding: SampleEncoding::F32,
+    };
+    let cam = &sc.layout.cameras[0].id;
+    let last_det_t = sc
+        .detections
+        .iter()
+        .filter(|d| d.t < 5120.0 / 16000.0)
+        .map(|d| d.t)
+        .fold(0.0, f64::max);
+
+    let wrong_channels = AudioFrame {
+        first_sample: 5120,
+        channels: 4,
+        samples: vec![0.0; 4 * 256],
+        encoding: SampleEncoding::F32,
+    }
+    .encode();
+    let good = block(5120, 1024).encode();
+    let truncated = good[..good.len() - 3].to_vec();
+    let header_only = good[..10].to_vec();
+    let oversized = AudioFrame {
+        first_sample: 5120,
+        channels: ch,
+        samples: vec![0.0; ch * 4096],
+        encoding: SampleEncoding::F32,
+    }
+    .encode();
+    assert!(oversized.len() < Limits::default().max_message_bytes);
+    let mut with_nan = block(5120, 1024);
+    with_nan.samples[3 * ch + 2] = f32::NAN;
+    let backwards = block(4096, 1024).encode();
+    vec![
+        bad_audio(wrong_channels, 5120),
+        bad_audio(truncated, 5120),
+        bad_audio(header_only, 5120),
+        bad_audio(oversized, 5120),
+        bad_audio(with_nan.encode(), 5120),
+        bad_audio(backwards, 5120),
+        bad_json("{\"type\": \"detections\", \"t\": 0.4,"),
+        bad_json("{\"type\": \"teleport\"}"),
+        bad_json("{\"type\":\"detections\",\"t\":0.5,\"camera\":\"cam9\",\"boxes\":[]}"),
+        bad_json(&format!(
+            "{{\"type\":\"detections\",\"t\":0.2,\"camera\":\"{cam}\",\"boxes\":[{{\"x\":10,\"y\":10,\"w\":-5,\"h\":10}}]}}"
+        )),
+        // Earlier than this camera's last frame: the pipeline refuses it as going backwards.
+        bad_json(&format!(
+            "{{\"type\":\"detections\",\"t\":{},\"camera\":\"{cam}\",\"boxes\":[]}}",
+            last_det_t - 0.05
+        )),
+    ]
+}
+
+/// Each of [`bad_messages`] got its own error naming the field, and nothing else was refused.
+fn every_refusal_is_named(e: &[ErrorBody]) {
+    assert!(
+        find(e, "bad_channels", Some("channels"))
+            .message
+            .contains("4 channels")
+    );
+    find(e, "truncated", Some("samples"));
+    find(e, "truncated", Some("header"));
+    assert!(
+        find(e, "oversized", Some("frame_count"))
+            .message
+            .contains("limit")
+    );
+    assert!(
+        find(e, "non_finite", Some("samples"))
+            .message
+            .contains("sample 3 of channel 2")
+    );
+    assert!(
+        find(e, "time_backwards", Some("first_sample"))
+            .message
+            .contains("5120")
+    );
+    find(e, "bad_json", None);
+    let m = e
+        .iter()
+        .find(|e| e.code == "bad_message")
+        .expect("bad_message");
+    assert!(m.message.contains("teleport"), "{m:?}");
+    assert!(
+        find(e, "unknown_camera", Some("camera"))
+            .message
+            .contains("cam9")
+    );
+    find(e, "bad_box", Some("boxes[0].w"));
+    find(e, "time_backwards", Some("t"));
+    assert_eq!(e.len(), 11, "{e:#?}");
 }
