@@ -23,6 +23,12 @@ fn bad_json(text: &str) -> FeedItem {
     }
 }
 
+/// The error `code` naming `field`, whose message says `text`.
+fn find_saying(errors: &[ErrorBody], code: &str, field: &str, text: &str) {
+    let e = find(errors, code, Some(field));
+    assert!(e.message.contains(text), "{e:?}");
+}
+
 fn find<'a>(errors: &'a [ErrorBody], code: &str, field: Option<&str>) -> &'a ErrorBody {
     errors
         .iter()
@@ -396,39 +402,19 @@ fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
 
 /// Each of [`bad_messages`] got its own error naming the field, and nothing else was refused.
 fn every_refusal_is_named(e: &[ErrorBody]) {
-    assert!(
-        find(e, "bad_channels", Some("channels"))
-            .message
-            .contains("4 channels")
-    );
+    find_saying(e, "bad_channels", "channels", "4 channels");
     find(e, "truncated", Some("samples"));
     find(e, "truncated", Some("header"));
-    assert!(
-        find(e, "oversized", Some("frame_count"))
-            .message
-            .contains("limit")
-    );
-    assert!(
-        find(e, "non_finite", Some("samples"))
-            .message
-            .contains("sample 3 of channel 2")
-    );
-    assert!(
-        find(e, "time_backwards", Some("first_sample"))
-            .message
-            .contains("5120")
-    );
+    find_saying(e, "oversized", "frame_count", "limit");
+    find_saying(e, "non_finite", "samples", "sample 3 of channel 2");
+    find_saying(e, "time_backwards", "first_sample", "5120");
     find(e, "bad_json", None);
     let m = e
         .iter()
         .find(|e| e.code == "bad_message")
         .expect("bad_message");
     assert!(m.message.contains("teleport"), "{m:?}");
-    assert!(
-        find(e, "unknown_camera", Some("camera"))
-            .message
-            .contains("cam9")
-    );
+    find_saying(e, "unknown_camera", "camera", "cam9");
     find(e, "bad_box", Some("boxes[0].w"));
     find(e, "time_backwards", Some("t"));
     assert_eq!(e.len(), 11, "{e:#?}");

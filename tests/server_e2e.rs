@@ -10,9 +10,11 @@ use std::time::Duration;
 use avsep::protocol::{AudioSelection, OutputSelection, SampleEncoding};
 use avsep::server::ServerConfig;
 use avsep::server::client::{
-    FeedMessage, StreamOptions, http, listen, resume_index, scene_feed, stream_feed,
+    FeedMessage, StreamOptions, http, resume_index, scene_feed, stream_feed,
 };
-use server_support::{TestServer, assert_same_tracks, audio_difference, offline, scene, settings};
+use server_support::{
+    TestServer, assert_same_tracks, audio_difference, offline, scene, settings, spawn_listener,
+};
 
 fn with_audio() -> OutputSelection {
     OutputSelection {
@@ -152,21 +154,7 @@ async fn reconnecting_client_resumes_its_session() {
     let url = server.ws_url(&s);
 
     // A listener stays connected throughout and sees everything the session produces.
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let listener = {
-        let (url, token) = (url.clone(), s.token.clone());
-        tokio::spawn(async move {
-            listen(
-                &url,
-                &token,
-                with_audio(),
-                Duration::from_secs(120),
-                Some(ready_tx),
-            )
-            .await
-        })
-    };
-    ready_rx.await.unwrap();
+    let listener = spawn_listener(&url, &s.token, with_audio(), 120).await;
 
     // The source streams half the scene, then drops its connection without finishing.
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);

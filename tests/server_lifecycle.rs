@@ -14,11 +14,11 @@ use avsep::pipeline::{
 use avsep::protocol::rest::{SessionInfo, SessionMetrics, TrackHistory, TracksSnapshot};
 use avsep::protocol::{OutputSelection, SampleEncoding};
 use avsep::scene::{AudioMeasurementFrame, DetectionFrame};
-use avsep::server::client::{FeedMessage, StreamOptions, http, listen, scene_feed, stream_feed};
+use avsep::server::client::{FeedMessage, StreamOptions, http, scene_feed, stream_feed};
 use avsep::server::engine::Engine;
 use avsep::server::session::SessionSpec;
 use avsep::server::{ServerConfig, client::create_body};
-use server_support::{TestServer, assert_same_tracks, offline, scene, settings};
+use server_support::{TestServer, assert_same_tracks, offline, scene, settings, spawn_listener};
 
 /// One session's REST resources under its token.
 struct SessionApi {
@@ -80,7 +80,7 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         token: s.token.clone(),
     };
     let url = server.ws_url(&s);
-    let listener = spawn_listener(url.clone(), s.token.clone(), 120).await;
+    let listener = spawn_listener(&url, &s.token, OutputSelection::default(), 120).await;
 
     // First half of the scene, then let the pipeline catch up with what was sent.
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
@@ -154,29 +154,6 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     assert_eq!(api.call("GET", "", None).await.status, 404);
     deleting_a_running_session_closes_its_streams(&server, &sc).await;
     server.stop().await;
-}
-
-/// A listener of the session's output stream, returned once it is subscribed.
-async fn spawn_listener(
-    url: String,
-    token: String,
-    timeout_s: u64,
-) -> tokio::task::JoinHandle<
-    Result<avsep::server::client::Received, avsep::server::client::ClientError>,
-> {
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let handle = tokio::spawn(async move {
-        listen(
-            &url,
-            &token,
-            OutputSelection::default(),
-            Duration::from_secs(timeout_s),
-            Some(ready_tx),
-        )
-        .await
-    });
-    ready_rx.await.unwrap();
-    handle
 }
 
 /// Moves the array by 1 cm (applied at the next step, tracks kept), sets the camera's
@@ -260,7 +237,13 @@ async fn deleting_a_running_session_closes_its_streams(
 ) {
     let host = server.host();
     let s2 = server.create(sc, settings(4), None).await;
-    let l2 = spawn_listener(server.ws_url(&s2), s2.token.clone(), 60).await;
+    let l2 = spawn_listener(
+        &server.ws_url(&s2),
+        &s2.token,
+        OutputSelection::default(),
+        60,
+    )
+    .await;
     let list: avsep::protocol::rest::SessionList = http(&host, "GET", "/v1/sessions", None, None)
         .await
         .unwrap()
@@ -401,21 +384,7 @@ async fn a_panicking_pipeline_fails_its_session_only() {
     let bad_url = format!("ws://{host}/v1/sessions/badbadbadbadbad0/stream");
     let good = server.create(&sc, settings(8), None).await;
 
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let bad_listener = {
-        let (url, token) = (bad_url.clone(), token.clone());
-        tokio::spawn(async move {
-            listen(
-                &url,
-                &token,
-                OutputSelection::default(),
-                Duration::from_secs(60),
-                Some(ready_tx),
-            )
-            .await
-        })
-    };
-    ready_rx.await.unwrap();
+    let bad_listener = spawn_listener(&bad_url, &token, OutputSelection::default(), 60).await;
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
     let opts = StreamOptions::default();
     let good_url = server.ws_url(&good);
@@ -548,21 +517,7 @@ async fn serve_drains_sessions_on_sigterm() {
         .unwrap();
     let s: avsep::protocol::rest::SessionCreated = r.json().unwrap();
     let url = format!("ws://{host}{}", s.stream);
-    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
-    let listener = {
-        let (url, token) = (url.clone(), s.token.clone());
-        tokio::spawn(async move {
-            listen(
-                &url,
-                &token,
-                OutputSelection::default(),
-                Duration::from_secs(60),
-                Some(ready_tx),
-            )
-            .await
-        })
-    };
-    ready_rx.await.unwrap();
+    let listener = spawn_listener(&url, &s.token, OutputSelection::default(), 60).await;
     // The source sends 0.75 s of audio and goes away without finishing.
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
     let stop = feed

@@ -6,17 +6,43 @@
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::sync::Arc;
+use std::time::Duration;
 
 use avsep::label::Label;
 use avsep::pipeline::PipelineConfig;
 use avsep::pipeline::offline::{OfflineOptions, process_scene};
+use avsep::protocol::OutputSelection;
 use avsep::protocol::rest::{SessionCreated, TracksSnapshot};
 use avsep::scene::Scene;
 use avsep::scene::format::TracksLine;
 use avsep::scene::output::Output;
 use avsep::scene::sim::{PresetOptions, SimConfig, simulate};
-use avsep::server::client::{create_body, http};
+use avsep::server::client::{ClientError, Received, create_body, http, listen};
 use avsep::server::{Registry, Server, ServerConfig};
+
+/// A listener of a session's output stream at `url` selecting `outputs`, returned once it is
+/// subscribed; it ends when the session's streams close or after `timeout_s` seconds.
+pub async fn spawn_listener(
+    url: &str,
+    token: &str,
+    outputs: OutputSelection,
+    timeout_s: u64,
+) -> tokio::task::JoinHandle<Result<Received, ClientError>> {
+    let (ready_tx, ready_rx) = tokio::sync::oneshot::channel();
+    let (url, token) = (url.to_string(), token.to_string());
+    let handle = tokio::spawn(async move {
+        listen(
+            &url,
+            &token,
+            outputs,
+            Duration::from_secs(timeout_s),
+            Some(ready_tx),
+        )
+        .await
+    });
+    ready_rx.await.unwrap();
+    handle
+}
 
 /// A server running in the test's runtime.
 pub struct TestServer {
