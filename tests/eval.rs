@@ -11,6 +11,7 @@
 use std::path::Path;
 use std::process::Command;
 
+use avsep::eval::tracks::{TrackingFigures, TracksReport};
 use avsep::eval::{EvalConfig, EvalReport, evaluate, plots::write_plots};
 use avsep::geometry::{Camera, Layout, MicArray, Vec3, azimuth_of, deg, rad};
 use avsep::label::Label;
@@ -251,6 +252,19 @@ fn tracking_scores_match_hand_computation() {
     let t = r.tracks.as_ref().unwrap();
     assert_eq!((t.steps, t.labels), (STEPS, 3));
     let all = &t.all;
+    assert_position_scores(all);
+    assert_ospa2_over_time(t);
+    assert_direction_and_pixel_scores(all);
+    assert_source_scores(all);
+
+    // Audible figures: s1 is audible from 0.5 s, s2 from 1.0 s, so the tracks before that are
+    // false positives (5 + 10), and nothing is missed.
+    let au = &t.audible.position;
+    assert_eq!((au.false_positives, au.misses, au.switches), (15, 0, 1));
+}
+
+/// OSPA and CLEAR MOT / identity scores in 3-D against every source.
+fn assert_position_scores(all: &TrackingFigures) {
     // Every step pairs both truths with a track 0.2 m away.
     assert!(close(all.ospa.total, 0.2, 1e-9), "{:?}", all.ospa);
     assert!(close(all.ospa.cardinality, 0.0, 1e-12));
@@ -262,7 +276,10 @@ fn tracking_scores_match_hand_computation() {
     // IDTP: s1 40 steps + s2 20 steps with one of its two labels, out of 80 + 80.
     assert!(close(p.idf1.unwrap(), 120.0 / 160.0, 1e-12));
     assert_eq!(p.mostly_tracked, 2);
+}
 
+/// OSPA(2) at each step and its mean.
+fn assert_ospa2_over_time(t: &TracksReport) {
     // OSPA(2) with a 10-step window: 0.2 except for the 9 windows that straddle the switch,
     // where the sets are {s1, s2} vs {1.0, 2.0, 3.0} with a steps of 2.0 and b of 3.0.
     let expected: Vec<f64> = (0..STEPS)
@@ -286,8 +303,11 @@ fn tracking_scores_match_hand_computation() {
         );
     }
     let mean = expected.iter().sum::<f64>() / STEPS as f64;
-    assert!(close(all.ospa2.total, mean, 1e-9));
+    assert!(close(t.all.ospa2.total, mean, 1e-9));
+}
 
+/// Azimuth error of the matched pairs, pixel error in the camera, and direction-space switches.
+fn assert_direction_and_pixel_scores(all: &TrackingFigures) {
     // Azimuth error from the array centroid, over all matched pairs.
     let c = Vec3::new(0.0, 0.0, 1.5);
     let az_err = |a: Vec3, b: Vec3| {
@@ -316,7 +336,10 @@ fn tracking_scores_match_hand_computation() {
     assert!(close(px.error_px.median.unwrap(), 100.0 / 3.0, 1e-6));
     // Direction space sees the same switch.
     assert_eq!(all.direction.switches, 1);
+}
 
+/// Per-source onset, initiation delay and the labels that carried each source.
+fn assert_source_scores(all: &TrackingFigures) {
     let s1 = &all.sources[0];
     let s2 = &all.sources[1];
     assert_eq!((s1.onset_s, s1.initiation_delay_s), (Some(0.5), Some(0.0)));
@@ -327,11 +350,6 @@ fn tracking_scores_match_hand_computation() {
     assert_eq!((s1.stream_labels, s2.stream_labels), (1, 2));
     assert_eq!(s2.active_labels[0].label, L2);
     assert!(close(s2.active_labels[0].share, 10.0 / 15.0, 1e-12));
-
-    // Audible figures: s1 is audible from 0.5 s, s2 from 1.0 s, so the tracks before that are
-    // false positives (5 + 10), and nothing is missed.
-    let au = &t.audible.position;
-    assert_eq!((au.false_positives, au.misses, au.switches), (15, 0, 1));
 }
 
 #[test]

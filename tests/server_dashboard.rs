@@ -124,25 +124,51 @@ async fn demo_room_is_discoverable_and_streams_in_real_time() {
     };
     let access = demo::start(server.registry.clone(), opts).await.unwrap();
     let started = Instant::now();
+    demo_is_listed_to_the_admin_only(&host, &key, &access).await;
 
-    // The token is given only to whoever may list sessions: here the admin key's holder.
-    let r = http(&host, "GET", "/dashboard/api/demo", None, None)
+    // The token opens the session; audio arrives at the real-time rate, and loops past the
+    // 2 s scene without being refused.
+    let path = format!("/v1/sessions/{}", access.id);
+    tokio::time::sleep(Duration::from_millis(3000)).await;
+    let (info, fed_s) = demo_is_fed_in_real_time(&host, &path, &access, started).await;
+    camera_panel_shows_the_latest_frame(&host, &access, &info, fed_s).await;
+
+    // Deleting the demo session stops the feeder and withdraws the token.
+    let r = http(&host, "DELETE", &path, Some(&key), None)
+        .await
+        .unwrap();
+    assert_eq!(r.status, 204);
+    let r = http(&host, "GET", "/dashboard/api/demo", Some(&key), None)
+        .await
+        .unwrap();
+    assert_eq!(r.status, 404);
+    server.stop().await;
+}
+
+/// The demo's token is given only to whoever may list sessions: here the admin key's holder.
+async fn demo_is_listed_to_the_admin_only(host: &str, key: &str, access: &demo::DemoAccess) {
+    let r = http(host, "GET", "/dashboard/api/demo", None, None)
         .await
         .unwrap();
     assert_eq!(r.status, 401, "{}", r.text());
-    let r = http(&host, "GET", "/dashboard/api/demo", Some(&key), None)
+    let r = http(host, "GET", "/dashboard/api/demo", Some(key), None)
         .await
         .unwrap();
     assert_eq!(r.status, 200, "{}", r.text());
     let listed: serde_json::Value = r.json().unwrap();
     assert_eq!(listed["id"], access.id.as_str());
     assert_eq!(listed["token"], access.token.as_str());
+}
 
-    // The token opens the session; audio arrives at the real-time rate, and loops past the
-    // 2 s scene without being refused.
-    let path = format!("/v1/sessions/{}", access.id);
-    tokio::time::sleep(Duration::from_millis(3000)).await;
-    let r = http(&host, "GET", &path, Some(&access.token), None)
+/// Checks the demo session at `path` has been fed audio at the real-time rate since `started`,
+/// with nothing refused; returns its info and the seconds of audio fed.
+async fn demo_is_fed_in_real_time(
+    host: &str,
+    path: &str,
+    access: &demo::DemoAccess,
+    started: Instant,
+) -> (SessionInfo, f64) {
+    let r = http(host, "GET", path, Some(&access.token), None)
         .await
         .unwrap();
     let info: SessionInfo = r.json().unwrap();
@@ -155,7 +181,7 @@ async fn demo_room_is_discoverable_and_streams_in_real_time() {
     assert!(fed_s > 2.0, "the 2 s scene loops ({fed_s:.2} s fed)");
     assert_eq!(info.name.as_deref(), Some("demo (single)"));
     let r = http(
-        &host,
+        host,
         "GET",
         &format!("{path}/metrics"),
         Some(&access.token),
@@ -167,10 +193,19 @@ async fn demo_room_is_discoverable_and_streams_in_real_time() {
     assert!(m.steps > 10, "{m:?}");
     assert!(m.refused.is_empty(), "nothing refused: {:?}", m.refused);
     assert_eq!(m.clients, 1, "the feeder is the session's one client");
+    (info, fed_s)
+}
 
-    // The camera panel's endpoint: the latest frame of the session's camera.
+/// The camera panel's endpoint gives the latest frame of the session's camera, close to the
+/// `fed_s` seconds of audio fed, and refuses another token.
+async fn camera_panel_shows_the_latest_frame(
+    host: &str,
+    access: &demo::DemoAccess,
+    info: &SessionInfo,
+    fed_s: f64,
+) {
     let r = http(
-        &host,
+        host,
         "GET",
         &format!("/dashboard/api/sessions/{}/detections", access.id),
         Some(&access.token),
@@ -189,7 +224,7 @@ async fn demo_room_is_discoverable_and_streams_in_real_time() {
         "latest frame at {t} s, audio at {fed_s} s"
     );
     let r = http(
-        &host,
+        host,
         "GET",
         &format!("/dashboard/api/sessions/{}/detections", access.id),
         Some(&"x".repeat(64)),
@@ -198,15 +233,4 @@ async fn demo_room_is_discoverable_and_streams_in_real_time() {
     .await
     .unwrap();
     assert_eq!(r.status, 403);
-
-    // Deleting the demo session stops the feeder and withdraws the token.
-    let r = http(&host, "DELETE", &path, Some(&key), None)
-        .await
-        .unwrap();
-    assert_eq!(r.status, 204);
-    let r = http(&host, "GET", "/dashboard/api/demo", Some(&key), None)
-        .await
-        .unwrap();
-    assert_eq!(r.status, 404);
-    server.stop().await;
 }

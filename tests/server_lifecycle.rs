@@ -14,7 +14,7 @@ use avsep::pipeline::{
 use avsep::protocol::rest::{SessionInfo, SessionMetrics, TrackHistory, TracksSnapshot};
 use avsep::protocol::{OutputSelection, SampleEncoding};
 use avsep::scene::{AudioMeasurementFrame, DetectionFrame};
-use avsep::server::client::{FeedMessage, StreamOptions, http, scene_feed, stream_feed};
+use avsep::server::client::{FeedItem, FeedMessage, StreamOptions, http, scene_feed, stream_feed};
 use avsep::server::engine::Engine;
 use avsep::server::session::SessionSpec;
 use avsep::server::{ServerConfig, client::create_body};
@@ -82,24 +82,8 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     let url = server.ws_url(&s);
     let listener = spawn_listener(&url, &s.token, OutputSelection::default(), 120).await;
 
-    // First half of the scene, then let the pipeline catch up with what was sent.
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
-    let half = feed
-        .iter()
-        .position(|i| matches!(i.message, FeedMessage::Audio { end: 24576, .. }))
-        .unwrap()
-        + 1;
-    let opts = StreamOptions {
-        disconnect_at: Some(half),
-        ..Default::default()
-    };
-    let first = stream_feed(&url, &s.token, &feed, &opts).await.unwrap();
-    assert!(first.errors.is_empty(), "{:?}", first.errors);
-    let before = api.wait_for_step(24576 / 2048 - 3).await;
-    assert!(
-        !before.tracks.is_empty(),
-        "tracks exist before the recalibration"
-    );
+    let (half, before) = stream_first_half(&api, &url, &feed).await;
     recalibrate_live(&api, &sc).await;
 
     // The rest of the scene; the tracks alive before go on after the recalibration.
@@ -110,11 +94,51 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
     let rest = stream_feed(&url, &s.token, &feed, &opts).await.unwrap();
     assert!(rest.errors.is_empty(), "{:?}", rest.errors);
     let heard = listener.await.unwrap().unwrap();
-    let after = heard
-        .tracks
+    assert_tracks_kept_across_recalibration(&before, &heard.tracks);
+    let audio_frames = feed
         .iter()
-        .find(|t| t.step > before.step + 1)
-        .unwrap();
+        .filter(|i| matches!(i.message, FeedMessage::Audio { .. }))
+        .count() as u64;
+    history_and_metrics_match_the_stream(&api, &heard.tracks, audio_frames, &sc).await;
+    cors_allows_the_configured_origin(&host).await;
+
+    // Deletion: 204, then gone.
+    assert_eq!(api.call("DELETE", "", None).await.status, 204);
+    assert_eq!(api.call("GET", "", None).await.status, 404);
+    deleting_a_running_session_closes_its_streams(&server, &sc).await;
+    server.stop().await;
+}
+
+/// Streams the first half of `feed` and lets the pipeline catch up with what was sent; returns
+/// where the rest starts and the tracks then.
+async fn stream_first_half(
+    api: &SessionApi,
+    url: &str,
+    feed: &[FeedItem],
+) -> (usize, TracksSnapshot) {
+    let half = feed
+        .iter()
+        .position(|i| matches!(i.message, FeedMessage::Audio { end: 24576, .. }))
+        .unwrap()
+        + 1;
+    let opts = StreamOptions {
+        disconnect_at: Some(half),
+        ..Default::default()
+    };
+    let first = stream_feed(url, &api.token, feed, &opts).await.unwrap();
+    assert!(first.errors.is_empty(), "{:?}", first.errors);
+    let before = api.wait_for_step(24576 / 2048 - 3).await;
+    assert!(
+        !before.tracks.is_empty(),
+        "tracks exist before the recalibration"
+    );
+    (half, before)
+}
+
+/// Some label alive `before` the recalibration is still there a step after it, and every step of
+/// the scene was reported.
+fn assert_tracks_kept_across_recalibration(before: &TracksSnapshot, heard: &[TracksSnapshot]) {
+    let after = heard.iter().find(|t| t.step > before.step + 1).unwrap();
     let kept = before
         .tracks
         .iter()
@@ -126,20 +150,13 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
         before.tracks,
         after.tracks
     );
-    assert_eq!(
-        heard.tracks.len(),
-        3 * 16000 / 2048 + 1,
-        "every step was reported"
-    );
-    let audio_frames = feed
-        .iter()
-        .filter(|i| matches!(i.message, FeedMessage::Audio { .. }))
-        .count() as u64;
-    history_and_metrics_match_the_stream(&api, &heard.tracks, audio_frames, &sc).await;
+    assert_eq!(heard.len(), 3 * 16000 / 2048 + 1, "every step was reported");
+}
 
-    // CORS for the configured origin.
+/// A CORS preflight from the configured origin is allowed.
+async fn cors_allows_the_configured_origin(host: &str) {
     let raw = raw_request(
-        &host,
+        host,
         "OPTIONS /v1/sessions HTTP/1.1\r\nHost: x\r\nOrigin: http://example.org\r\nAccess-Control-Request-Method: POST\r\nConnection: close\r\n\r\n",
     )
     .await;
@@ -148,12 +165,6 @@ async fn live_recalibration_settings_history_metrics_and_deletion() {
             .contains("access-control-allow-origin: http://example.org"),
         "{raw}"
     );
-
-    // Deletion: 204, then gone.
-    assert_eq!(api.call("DELETE", "", None).await.status, 204);
-    assert_eq!(api.call("GET", "", None).await.status, 404);
-    deleting_a_running_session_closes_its_streams(&server, &sc).await;
-    server.stop().await;
 }
 
 /// Moves the array by 1 cm (applied at the next step, tracks kept), sets the camera's

@@ -298,31 +298,7 @@ async fn zenoh_only_device_gets_the_offline_result_and_errors_naming_the_field()
 
     // Bad input first: each comes back on out/events naming the field, nothing is accepted.
     let mut heard = Heard::default();
-    let audio_key = input_audio(&s.id);
-    let mut frame = match &scene_feed(&sc, 1024, SampleEncoding::F32)
-        .into_iter()
-        .find(|i| matches!(i.message, FeedMessage::Audio { .. }))
-        .unwrap()
-        .message
-    {
-        FeedMessage::Audio { bytes, .. } => bytes.clone(),
-        _ => unreachable!(),
-    };
-    frame.truncate(frame.len() - 3);
-    edge.put(&audio_key, frame, Some(&s.token));
-    let nobody = r#"{"type":"detections","t":0.0,"camera":"nocam","boxes":[]}"#;
-    edge.put(
-        &input_detections(&s.id, "nocam"),
-        nobody.into(),
-        Some(&s.token),
-    );
-    edge.put(&audio_key, b"AVSA".to_vec(), None);
-    edge.put(&audio_key, b"AVSA".to_vec(), Some("not-the-token"));
-    edge.put(
-        &input_detections(&s.id, "cam0"),
-        b"{\"type\":\"detections\",".to_vec(),
-        Some(&s.token),
-    );
+    send_bad_input(&edge, &s, &sc);
     edge.errors(&s.id, &mut heard, 5).await;
     let got: Vec<(&str, Option<&str>)> = heard
         .errors
@@ -350,7 +326,43 @@ async fn zenoh_only_device_gets_the_offline_result_and_errors_naming_the_field()
     let n = sc.audio.as_ref().unwrap().frames();
     assert_eq!(audio_difference(&audio, &heard.audio_by_label(n)), 0.0);
 
-    // Inspect and list over Zenoh; the refusals were counted like the WebSocket's.
+    inspect_and_list_over_zenoh(&server, &edge, &s).await;
+    server.stop().await;
+}
+
+/// Sends five bad inputs: a truncated audio frame, detections of an unknown camera, audio
+/// without and with a wrong token, and broken JSON.
+fn send_bad_input(edge: &Edge, s: &SessionCreated, sc: &Scene) {
+    let audio_key = input_audio(&s.id);
+    let mut frame = match &scene_feed(sc, 1024, SampleEncoding::F32)
+        .into_iter()
+        .find(|i| matches!(i.message, FeedMessage::Audio { .. }))
+        .unwrap()
+        .message
+    {
+        FeedMessage::Audio { bytes, .. } => bytes.clone(),
+        _ => unreachable!(),
+    };
+    frame.truncate(frame.len() - 3);
+    edge.put(&audio_key, frame, Some(&s.token));
+    let nobody = r#"{"type":"detections","t":0.0,"camera":"nocam","boxes":[]}"#;
+    edge.put(
+        &input_detections(&s.id, "nocam"),
+        nobody.into(),
+        Some(&s.token),
+    );
+    edge.put(&audio_key, b"AVSA".to_vec(), None);
+    edge.put(&audio_key, b"AVSA".to_vec(), Some("not-the-token"));
+    edge.put(
+        &input_detections(&s.id, "cam0"),
+        b"{\"type\":\"detections\",".to_vec(),
+        Some(&s.token),
+    );
+}
+
+/// Inspects and lists the session over Zenoh, and checks the refusals were counted like the
+/// WebSocket's.
+async fn inspect_and_list_over_zenoh(server: &ZenohServer, edge: &Edge, s: &SessionCreated) {
     let info: SessionInfo = serde_json::from_slice(
         &edge
             .query(&session_query(&s.id), None, Some(&s.token))
@@ -364,7 +376,6 @@ async fn zenoh_only_device_gets_the_offline_result_and_errors_naming_the_field()
     assert!(list.sessions.iter().any(|x| x.id == s.id));
     let m = server.http.registry.get(&s.id).unwrap().metrics();
     assert_eq!(m.refused.values().sum::<u64>(), 5, "{:?}", m.refused);
-    server.stop().await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -377,8 +388,36 @@ async fn zenoh_queries_check_credentials_and_rest_sessions_stream_over_zenoh() {
     let server = ZenohServer::start(cfg).await;
     let mut edge = Edge::connect(&server.endpoint).await;
     let sc = scene("uca8", 0.5, 1, 29);
+    let z = create_checks_credentials(&edge, &sc, key).await;
 
-    // Create needs the admin key when one is configured; a bad body names the field.
+    // A session created over REST is on Zenoh too; another session's token does not open it.
+    let r = server.http.create(&sc, settings(1), Some(key)).await;
+    let mut heard = rest_session_checks_tokens(&mut edge, &r, &z, key).await;
+
+    // Deleting it over REST ends its Zenoh stream with `closed`.
+    let d = http(
+        &server.http.host(),
+        "DELETE",
+        &format!("/v1/sessions/{}", r.id),
+        Some(key),
+        None,
+    )
+    .await
+    .unwrap();
+    assert_eq!(d.status, 204, "{}", d.text());
+    let deadline = Instant::now() + WAIT;
+    while heard.closed.is_none() {
+        assert!(Instant::now() < deadline, "no closed message");
+        edge.drain(&r.id, &mut heard, Duration::from_millis(200))
+            .await;
+    }
+    assert_eq!(heard.closed.unwrap().reason, "session deleted");
+    server.stop().await;
+}
+
+/// Create needs the admin key `key` when one is configured, and a bad body names the field;
+/// returns the session created with the key.
+async fn create_checks_credentials(edge: &Edge, sc: &Scene, key: &str) -> SessionCreated {
     let body = serde_json::to_vec(&create_body(&sc.layout, None)).unwrap();
     let e = edge
         .query(SESSIONS_CREATE, Some(body.clone()), None)
@@ -409,16 +448,23 @@ async fn zenoh_queries_check_credentials_and_rest_sessions_stream_over_zenoh() {
     assert_eq!(e.error.field.as_deref(), Some("arrays[0].mics[0]"), "{e:?}");
     let e = edge.query(SESSIONS_LIST, None, None).await.unwrap_err();
     assert_eq!(e.error.code, "unauthorized");
-    let z: SessionCreated = serde_json::from_slice(
+    serde_json::from_slice(
         &edge
             .query(SESSIONS_CREATE, Some(body), Some(key))
             .await
             .unwrap(),
     )
-    .unwrap();
+    .unwrap()
+}
 
-    // A session created over REST is on Zenoh too; another session's token does not open it.
-    let r = server.http.create(&sc, settings(1), Some(key)).await;
+/// Session `r` (created over REST) refuses `z`'s token for inspection and input, opens with the
+/// admin key, and names an unknown input key; returns what was heard of `r`.
+async fn rest_session_checks_tokens(
+    edge: &mut Edge,
+    r: &SessionCreated,
+    z: &SessionCreated,
+    key: &str,
+) -> Heard {
     let e = edge
         .query(&session_query(&r.id), None, Some(&z.token))
         .await
@@ -455,24 +501,5 @@ async fn zenoh_queries_check_credentials_and_rest_sessions_stream_over_zenoh() {
         ),
         ("unknown_key", Some("key"))
     );
-
-    // Deleting it over REST ends its Zenoh stream with `closed`.
-    let d = http(
-        &server.http.host(),
-        "DELETE",
-        &format!("/v1/sessions/{}", r.id),
-        Some(key),
-        None,
-    )
-    .await
-    .unwrap();
-    assert_eq!(d.status, 204, "{}", d.text());
-    let deadline = Instant::now() + WAIT;
-    while heard.closed.is_none() {
-        assert!(Instant::now() < deadline, "no closed message");
-        edge.drain(&r.id, &mut heard, Duration::from_millis(200))
-            .await;
-    }
-    assert_eq!(heard.closed.unwrap().reason, "session deleted");
-    server.stop().await;
+    heard
 }

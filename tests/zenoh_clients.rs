@@ -147,37 +147,12 @@ fn zenoh_client_and_edge_device_get_the_offline_result() {
     let config = dir.path().join("settings.toml");
     std::fs::write(&config, "seed = 5\n").unwrap();
     let (offline_dir, live_dir) = (dir.path().join("offline"), dir.path().join("live"));
-
-    run_ok(
-        Command::new(BIN)
-            .args(["process", scene_dir.to_str().unwrap(), "--out"])
-            .arg(&offline_dir)
-            .arg("--config")
-            .arg(&config),
-    );
-    let offline = Output::load(&offline_dir, &sc.layout).unwrap();
+    let offline = process_offline(&scene_dir, &offline_dir, &config, &sc);
     let offline_tracks = offline.tracks.clone().unwrap();
 
     // The CLI over Zenoh and the edge device (creating its session through the queryable) at
     // once: two independent sessions on one server.
-    let cli = std::thread::spawn({
-        let (zenoh, scene_dir, live_dir, config) = (
-            server.zenoh.clone(),
-            scene_dir.clone(),
-            live_dir.clone(),
-            config.clone(),
-        );
-        move || {
-            run_ok(
-                Command::new(BIN)
-                    .args(["client", "stream", scene_dir.to_str().unwrap()])
-                    .args(["--zenoh", "--zenoh-connect", &zenoh, "--out"])
-                    .arg(&live_dir)
-                    .arg("--config")
-                    .arg(&config),
-            )
-        }
-    });
+    let cli = spawn_cli_stream(&server, &scene_dir, &live_dir, &config);
     let tracks_out = dir.path().join("edge-tracks.jsonl");
     let created = edge::run(edge_args(
         &server,
@@ -188,8 +163,56 @@ fn zenoh_client_and_edge_device_get_the_offline_result() {
     .unwrap();
     cli.join().unwrap();
 
-    let live = Output::load(&live_dir, &sc.layout).unwrap();
-    assert_same_tracks(&offline_tracks, &snapshots(live.tracks.unwrap()));
+    assert_cli_output_equals_offline(&live_dir, &sc, &offline);
+    assert_edge_session_equals_offline(&created, &tracks_out, &offline_tracks);
+    edge_joins_a_session_created_over_rest(&server, &scene_dir, &config, &sc, &offline_tracks);
+    server.stop();
+}
+
+/// Runs `avsep process` on the scene into `offline_dir` and loads what it wrote.
+fn process_offline(scene_dir: &Path, offline_dir: &Path, config: &Path, sc: &Scene) -> Output {
+    run_ok(
+        Command::new(BIN)
+            .args(["process", scene_dir.to_str().unwrap(), "--out"])
+            .arg(offline_dir)
+            .arg("--config")
+            .arg(config),
+    );
+    Output::load(offline_dir, &sc.layout).unwrap()
+}
+
+/// Starts `avsep client stream --zenoh` on the scene, writing into `live_dir`, on a thread.
+fn spawn_cli_stream(
+    server: &Serve,
+    scene_dir: &Path,
+    live_dir: &Path,
+    config: &Path,
+) -> std::thread::JoinHandle<()> {
+    let (zenoh, scene_dir, live_dir, config) = (
+        server.zenoh.clone(),
+        scene_dir.to_path_buf(),
+        live_dir.to_path_buf(),
+        config.to_path_buf(),
+    );
+    std::thread::spawn(move || {
+        run_ok(
+            Command::new(BIN)
+                .args(["client", "stream", scene_dir.to_str().unwrap()])
+                .args(["--zenoh", "--zenoh-connect", &zenoh, "--out"])
+                .arg(&live_dir)
+                .arg("--config")
+                .arg(&config),
+        )
+    })
+}
+
+/// Asserts the CLI's output folder equals the offline one and its summary names the Zenoh link.
+fn assert_cli_output_equals_offline(live_dir: &Path, sc: &Scene, offline: &Output) {
+    let live = Output::load(live_dir, &sc.layout).unwrap();
+    assert_same_tracks(
+        offline.tracks.as_ref().unwrap(),
+        &snapshots(live.tracks.unwrap()),
+    );
     assert_eq!(audio_difference(&offline.audio, &live.audio), 0.0);
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(live_dir.join("summary.json")).unwrap()).unwrap();
@@ -200,20 +223,31 @@ fn zenoh_client_and_edge_device_get_the_offline_result() {
             .unwrap()
             .starts_with("zenoh tcp/")
     );
+}
 
+/// Asserts the edge device's own session finished with the offline tracks, received and written.
+fn assert_edge_session_equals_offline(
+    created: &edge::EdgeReport,
+    tracks_out: &Path,
+    offline_tracks: &[TracksLine],
+) {
     assert!(created.errors.is_empty(), "{:?}", created.errors);
-    assert_eq!(created.closed.unwrap().state, SessionState::Finished);
-    assert_same_tracks(&offline_tracks, &created.tracks);
+    assert_eq!(
+        created.closed.as_ref().unwrap().state,
+        SessionState::Finished
+    );
+    assert_same_tracks(offline_tracks, &created.tracks);
     let mut from_file = Vec::new();
-    avsep::scene::read_jsonl(&tracks_out, |_, l: TracksLine| {
+    avsep::scene::read_jsonl(tracks_out, |_, l: TracksLine| {
         from_file.push(l);
         Ok(())
     })
     .unwrap();
-    assert_same_tracks(&offline_tracks, &snapshots(from_file));
+    assert_same_tracks(offline_tracks, &snapshots(from_file));
+}
 
-    // Joining a session created over REST (another device's), inspected over Zenoh with its
-    // token; a wrong token is refused by name.
+/// Creates a session over REST, as another device would.
+fn create_over_rest(server: &Serve, sc: &Scene) -> SessionCreated {
     let body = serde_json::to_vec(&create_body(&sc.layout, Some(settings(5)))).unwrap();
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -229,24 +263,35 @@ fn zenoh_client_and_edge_device_get_the_offline_result() {
         ))
         .unwrap();
     assert_eq!(r.status, 201, "{}", r.text());
-    let s: SessionCreated = r.json().unwrap();
+    r.json().unwrap()
+}
+
+/// The edge device joins a session created over REST (another device's) with its token and
+/// gets the offline tracks; a wrong token is refused by name.
+fn edge_joins_a_session_created_over_rest(
+    server: &Serve,
+    scene_dir: &Path,
+    config: &Path,
+    sc: &Scene,
+    offline_tracks: &[TracksLine],
+) {
+    let s = create_over_rest(server, sc);
     let e = edge::run(edge_args(
-        &server,
-        &scene_dir,
-        &config,
+        server,
+        scene_dir,
+        config,
         &["--session", &s.id, "--token", "not-the-token"],
     ))
     .unwrap_err();
     assert!(e.contains("forbidden"), "{e}");
     let joined = edge::run(edge_args(
-        &server,
-        &scene_dir,
-        &config,
+        server,
+        scene_dir,
+        config,
         &["--session", &s.id, "--token", &s.token],
     ))
     .unwrap();
     assert_eq!(joined.session, s.id);
     assert!(joined.errors.is_empty(), "{:?}", joined.errors);
-    assert_same_tracks(&offline_tracks, &joined.tracks);
-    server.stop();
+    assert_same_tracks(offline_tracks, &joined.tracks);
 }

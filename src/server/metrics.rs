@@ -41,6 +41,12 @@ impl FrameKind {
 /// The server-wide collectors.
 pub struct ServerMetrics {
     registry: Registry,
+    counters: RunCounters,
+    gauges: ReadGauges,
+}
+
+/// Collectors the sessions count into as they run.
+struct RunCounters {
     frames_in: IntCounterVec,
     refused: IntCounterVec,
     output_dropped: IntCounter,
@@ -51,11 +57,15 @@ pub struct ServerMetrics {
     processing_seconds: prometheus::Counter,
     panics: IntCounter,
     sessions_created: IntCounter,
+    separation_waits: IntCounter,
+}
+
+/// Gauges set from the sessions and the process only when `/metrics` is read.
+struct ReadGauges {
     sessions: IntGaugeVec,
     clients: IntGauge,
     queue_depth: IntGauge,
     separation_queue_depth: IntGauge,
-    separation_waits: IntCounter,
     live_tracks: IntGauge,
     resident_bytes: IntGauge,
     cpu_seconds: Gauge,
@@ -88,31 +98,24 @@ fn latency_histogram(name: &str, help: &str) -> Result<Histogram, prometheus::Er
     Histogram::with_opts(HistogramOpts::new(name, help).buckets(latency_buckets()))
 }
 
-impl ServerMetrics {
-    /// Registers the collectors in a new registry.
-    pub fn new() -> Result<Self, prometheus::Error> {
-        let registry = Registry::new();
-        let frames_in = IntCounterVec::new(
-            Opts::new(
-                "avsep_frames_in_total",
-                "Inbound messages accepted, by kind",
-            ),
-            &["kind"],
-        )?;
-        let refused = IntCounterVec::new(
-            Opts::new(
-                "avsep_frames_refused_total",
-                "Inbound messages refused, by reason",
-            ),
-            &["reason"],
-        )?;
-        let sessions = IntGaugeVec::new(
-            Opts::new("avsep_sessions", "Sessions held, by state"),
-            &["state"],
-        )?;
-        let m = Self {
-            frames_in,
-            refused,
+impl RunCounters {
+    /// Creates the counters and histograms, unregistered.
+    fn new() -> Result<Self, prometheus::Error> {
+        Ok(Self {
+            frames_in: IntCounterVec::new(
+                Opts::new(
+                    "avsep_frames_in_total",
+                    "Inbound messages accepted, by kind",
+                ),
+                &["kind"],
+            )?,
+            refused: IntCounterVec::new(
+                Opts::new(
+                    "avsep_frames_refused_total",
+                    "Inbound messages refused, by reason",
+                ),
+                &["reason"],
+            )?,
             output_dropped: IntCounter::new(
                 "avsep_output_dropped_total",
                 "Output messages slow stream clients skipped",
@@ -139,7 +142,22 @@ impl ServerMetrics {
                 "Sessions whose pipeline panicked",
             )?,
             sessions_created: IntCounter::new("avsep_sessions_created_total", "Sessions created")?,
-            sessions,
+            separation_waits: IntCounter::new(
+                "avsep_separation_waits_total",
+                "Steps whose pipeline waited for a full separation queue",
+            )?,
+        })
+    }
+}
+
+impl ReadGauges {
+    /// Creates the gauges, unregistered.
+    fn new() -> Result<Self, prometheus::Error> {
+        Ok(Self {
+            sessions: IntGaugeVec::new(
+                Opts::new("avsep_sessions", "Sessions held, by state"),
+                &["state"],
+            )?,
             clients: IntGauge::new("avsep_clients", "Stream clients connected")?,
             queue_depth: IntGauge::new(
                 "avsep_queue_depth",
@@ -148,10 +166,6 @@ impl ServerMetrics {
             separation_queue_depth: IntGauge::new(
                 "avsep_separation_queue_depth",
                 "Steps of separation work waiting for their sessions' separation threads, summed over sessions",
-            )?,
-            separation_waits: IntCounter::new(
-                "avsep_separation_waits_total",
-                "Steps whose pipeline waited for a full separation queue",
             )?,
             live_tracks: IntGauge::new("avsep_live_tracks", "Tracks that exist now")?,
             resident_bytes: IntGauge::new(
@@ -166,7 +180,17 @@ impl ServerMetrics {
                 "avsep_real_time_factor",
                 "Processing time over audio time, all sessions since start",
             )?,
-            registry,
+        })
+    }
+}
+
+impl ServerMetrics {
+    /// Registers the collectors in a new registry.
+    pub fn new() -> Result<Self, prometheus::Error> {
+        let m = Self {
+            registry: Registry::new(),
+            counters: RunCounters::new()?,
+            gauges: ReadGauges::new()?,
         };
         m.register_all()?;
         Ok(m)
@@ -175,25 +199,25 @@ impl ServerMetrics {
     /// Registers every collector with the registry.
     fn register_all(&self) -> Result<(), prometheus::Error> {
         let all: Vec<Box<dyn prometheus::core::Collector>> = vec![
-            Box::new(self.frames_in.clone()),
-            Box::new(self.refused.clone()),
-            Box::new(self.output_dropped.clone()),
-            Box::new(self.steps.clone()),
-            Box::new(self.step_latency.clone()),
-            Box::new(self.step_processing.clone()),
-            Box::new(self.audio_seconds.clone()),
-            Box::new(self.processing_seconds.clone()),
-            Box::new(self.panics.clone()),
-            Box::new(self.sessions_created.clone()),
-            Box::new(self.sessions.clone()),
-            Box::new(self.clients.clone()),
-            Box::new(self.queue_depth.clone()),
-            Box::new(self.separation_queue_depth.clone()),
-            Box::new(self.separation_waits.clone()),
-            Box::new(self.live_tracks.clone()),
-            Box::new(self.resident_bytes.clone()),
-            Box::new(self.cpu_seconds.clone()),
-            Box::new(self.real_time_factor.clone()),
+            Box::new(self.counters.frames_in.clone()),
+            Box::new(self.counters.refused.clone()),
+            Box::new(self.counters.output_dropped.clone()),
+            Box::new(self.counters.steps.clone()),
+            Box::new(self.counters.step_latency.clone()),
+            Box::new(self.counters.step_processing.clone()),
+            Box::new(self.counters.audio_seconds.clone()),
+            Box::new(self.counters.processing_seconds.clone()),
+            Box::new(self.counters.panics.clone()),
+            Box::new(self.counters.sessions_created.clone()),
+            Box::new(self.gauges.sessions.clone()),
+            Box::new(self.gauges.clients.clone()),
+            Box::new(self.gauges.queue_depth.clone()),
+            Box::new(self.gauges.separation_queue_depth.clone()),
+            Box::new(self.counters.separation_waits.clone()),
+            Box::new(self.gauges.live_tracks.clone()),
+            Box::new(self.gauges.resident_bytes.clone()),
+            Box::new(self.gauges.cpu_seconds.clone()),
+            Box::new(self.gauges.real_time_factor.clone()),
         ];
         for c in all {
             self.registry.register(c)?;
@@ -203,31 +227,36 @@ impl ServerMetrics {
 
     /// Counts a created session.
     pub fn session_created(&self) {
-        self.sessions_created.inc();
+        self.counters.sessions_created.inc();
     }
 
     /// Counts a session whose pipeline panicked.
     pub fn session_failed(&self) {
-        self.panics.inc();
+        self.counters.panics.inc();
     }
 
     /// The Prometheus text exposition, with gauges set from `snap`.
     pub fn render(&self, snap: &Snapshot) -> String {
-        self.sessions.reset();
+        self.gauges.sessions.reset();
         for state in ["running", "finishing", "finished", "failed"] {
             let n = snap.sessions.get(state).copied().unwrap_or(0);
-            self.sessions.with_label_values(&[state]).set(n);
+            self.gauges.sessions.with_label_values(&[state]).set(n);
         }
-        self.clients.set(snap.clients);
-        self.queue_depth.set(snap.queue_depth);
-        self.separation_queue_depth.set(snap.separation_queue_depth);
-        self.live_tracks.set(snap.live_tracks);
-        self.resident_bytes
+        self.gauges.clients.set(snap.clients);
+        self.gauges.queue_depth.set(snap.queue_depth);
+        self.gauges
+            .separation_queue_depth
+            .set(snap.separation_queue_depth);
+        self.gauges.live_tracks.set(snap.live_tracks);
+        self.gauges
+            .resident_bytes
             .set(resident_memory_bytes().unwrap_or(0) as i64);
-        self.cpu_seconds.set(process_cpu_seconds().unwrap_or(0.0));
-        let audio = self.audio_seconds.get();
-        self.real_time_factor.set(if audio > 0.0 {
-            self.processing_seconds.get() / audio
+        self.gauges
+            .cpu_seconds
+            .set(process_cpu_seconds().unwrap_or(0.0));
+        let audio = self.counters.audio_seconds.get();
+        self.gauges.real_time_factor.set(if audio > 0.0 {
+            self.counters.processing_seconds.get() / audio
         } else {
             0.0
         });
@@ -356,6 +385,7 @@ impl SessionCounters {
         };
         c.fetch_add(1, Ordering::Relaxed);
         self.server
+            .counters
             .frames_in
             .with_label_values(&[kind.as_str()])
             .inc();
@@ -366,22 +396,30 @@ impl SessionCounters {
         if let Ok(mut m) = self.refused.lock() {
             *m.entry(code.to_string()).or_default() += 1;
         }
-        self.server.refused.with_label_values(&[code]).inc();
+        self.server
+            .counters
+            .refused
+            .with_label_values(&[code])
+            .inc();
     }
 
     /// Counts output messages a client skipped.
     pub fn output_dropped(&self, n: u64) {
         self.output_dropped.fetch_add(n, Ordering::Relaxed);
-        self.server.output_dropped.inc_by(n);
+        self.server.counters.output_dropped.inc_by(n);
     }
 
     /// Records one tracker step: its latency since the completing message arrived, and the
     /// pipeline time spent on it.
     pub fn step(&self, latency: Duration, processing: Duration) {
         self.steps.fetch_add(1, Ordering::Relaxed);
-        self.server.steps.inc();
-        self.server.step_latency.observe(latency.as_secs_f64());
+        self.server.counters.steps.inc();
         self.server
+            .counters
+            .step_latency
+            .observe(latency.as_secs_f64());
+        self.server
+            .counters
             .step_processing
             .observe(processing.as_secs_f64());
         if let Ok(mut w) = self.latency.lock() {
@@ -397,9 +435,13 @@ impl SessionCounters {
         self.processing_ns
             .fetch_add(time.as_nanos() as u64, Ordering::Relaxed);
         self.audio_samples.fetch_add(samples, Ordering::Relaxed);
-        self.server.processing_seconds.inc_by(time.as_secs_f64());
+        self.server
+            .counters
+            .processing_seconds
+            .inc_by(time.as_secs_f64());
         if sample_rate > 0 {
             self.server
+                .counters
                 .audio_seconds
                 .inc_by(samples as f64 / sample_rate as f64);
         }
@@ -422,7 +464,7 @@ impl SessionCounters {
     /// Counts a step whose pipeline waited because the separation queue was full.
     pub fn separation_waited(&self) {
         self.separation_waits.fetch_add(1, Ordering::Relaxed);
-        self.server.separation_waits.inc();
+        self.server.counters.separation_waits.inc();
     }
 
     /// Steps whose pipeline waited for a full separation queue.

@@ -209,7 +209,18 @@ fn recorded_speech_from_a_folder_replaces_the_synthetic_voices() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    let scene = Scene::load(&out).unwrap();
+    assert_voices_follow_the_bursts(&Scene::load(&out).unwrap());
+
+    // A missing folder, a folder without enough files, a broken WAV: exit 2 naming the path.
+    expect_speech_error(&dir.path().join("missing"), &out, "missing");
+    expect_speech_error(&speech, &out, "speech");
+    std::fs::write(speech.join("c.wav"), "this is not audio").unwrap();
+    expect_speech_error(&speech, &out, "c.wav");
+}
+
+/// Every source of the 2.5 s `scene` pauses where its recording does and has its energy inside
+/// its active intervals.
+fn assert_voices_follow_the_bursts(scene: &Scene) {
     let fs = scene.layout.sample_rate as f64;
     for s in &scene.truth.as_ref().unwrap().sources {
         // The bursts' gaps show up as pauses inside the phrases.
@@ -234,23 +245,11 @@ fn recorded_speech_from_a_folder_replaces_the_synthetic_voices() {
             .sum();
         assert!(total > 0.0 && inside > 0.99 * total);
     }
+}
 
-    // A missing folder, a folder without enough files, a broken WAV: exit 2 naming the path.
-    let missing = dir.path().join("missing");
-    expect_input_error(
-        &[
-            "simulate",
-            "--preset",
-            "uca8",
-            "--duration",
-            "1",
-            "--speech",
-            missing.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        "missing",
-    );
+/// Simulating a 1 s uca8 scene with the recordings in `speech` into `out` exits 2 mentioning
+/// `mention`.
+fn expect_speech_error(speech: &Path, out: &Path, mention: &str) {
     expect_input_error(
         &[
             "simulate",
@@ -263,21 +262,6 @@ fn recorded_speech_from_a_folder_replaces_the_synthetic_voices() {
             "--out",
             out.to_str().unwrap(),
         ],
-        "speech",
-    );
-    std::fs::write(speech.join("c.wav"), "this is not audio").unwrap();
-    expect_input_error(
-        &[
-            "simulate",
-            "--preset",
-            "uca8",
-            "--duration",
-            "1",
-            "--speech",
-            speech.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        "c.wav",
+        mention,
     );
 }

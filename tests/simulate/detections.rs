@@ -1,6 +1,7 @@
 //! Camera detections: visibility, facing, point accuracy, miss and clutter rates.
 
-use avsep::geometry::angle_diff;
+use avsep::geometry::{Camera, angle_diff};
+use avsep::scene::Scene;
 use avsep::scene::sim::{
     self, CameraConfig, DetectorConfig, FacingConfig, SimConfig, SpeakerConfig, SpeechConfig,
 };
@@ -53,8 +54,22 @@ fn detections_follow_visibility_and_facing() {
     };
     let scene = sim::simulate(&cfg, 7).unwrap();
     let cam = &scene.layout.cameras[0];
-    let truth = &scene.truth.as_ref().unwrap().sources;
     let sigma = 6.0 * cam.height / 1080.0;
+    assert_only_the_visible_facing_talker_is_detected(&scene, sigma);
+
+    // Missed detections and clutter at the configured rates.
+    cfg.duration_s = 6.0;
+    cfg.detector.detection_probability = 0.7;
+    cfg.detector.clutter_per_frame = 2.0;
+    cfg.speakers[0].facing.away_s.clear();
+    assert_miss_and_clutter_rates(&sim::simulate(&cfg, 8).unwrap(), cam, sigma);
+}
+
+/// In `scene`, the first talker is detected (near its mouth, within `sigma` px noise) until it
+/// turns away, and the second, out of view, never is.
+fn assert_only_the_visible_facing_talker_is_detected(scene: &Scene, sigma: f64) {
+    let cam = &scene.layout.cameras[0];
+    let truth = &scene.truth.as_ref().unwrap().sources;
     assert_eq!(
         scene.detections.len(),
         45,
@@ -87,13 +102,11 @@ fn detections_follow_visibility_and_facing() {
         }
     }
     assert!(seen >= 22);
+}
 
-    // Missed detections and clutter at the configured rates.
-    cfg.duration_s = 6.0;
-    cfg.detector.detection_probability = 0.7;
-    cfg.detector.clutter_per_frame = 2.0;
-    cfg.speakers[0].facing.away_s.clear();
-    let scene = sim::simulate(&cfg, 8).unwrap();
+/// In `scene` (detection probability 0.7, 2 clutter boxes per frame), boxes near the first
+/// talker's mouth in `cam` come at the detection rate and the others at the clutter rate.
+fn assert_miss_and_clutter_rates(scene: &Scene, cam: &Camera, sigma: f64) {
     let truth = &scene.truth.as_ref().unwrap().sources;
     let frames = scene.detections.len() as f64;
     let (mut true_hits, mut clutter) = (0.0, 0.0);
