@@ -143,7 +143,8 @@ impl HarmonicConfig {
             self.register_confidence_s,
             0.001,
             3600.0,
-        )
+        )?;
+        in_range("register_ownership", self.register_ownership, 0.0, 10.0)
     }
 }
 

@@ -11,7 +11,10 @@
 //! resolved: where the beamformers pass the same mixture it only says who is louder).
 //! Each label keeps a pitch register, the running mean of the log F0s it owned, and the search
 //! prefers candidates inside it: in a frame where a neighbour's leak is as strong as the label's
-//! own voice, the label keeps its own pitch instead of taking the neighbour's.
+//! own voice, the label keeps its own pitch instead of taking the neighbour's. Where two labels
+//! still read the same F0 (a silent label reading a neighbour's leak as loud as its voice, which
+//! a far talker's reverberation makes common), the register also weighs each comb's claim on the
+//! harmonics: the talker whose usual range holds the F0 is more likely its owner.
 //!
 //! How unresolved a pair of labels is at a bin follows from their steering vectors and the
 //! null-steering loading: the loaded two-column beamformer's leakage of one label into the
@@ -45,6 +48,17 @@ pub struct Pitch {
     pub voicing: f64,
     /// Mean peak-minus-valley magnitude over the comb's harmonics (the scale of the input).
     pub salience: f64,
+    /// How well the F0 fits the label's pitch register: its preference there, in (0, 1], to
+    /// the power `register_ownership` (1 without a register or for a known pitch).
+    pub register_fit: f64,
+}
+
+impl Pitch {
+    /// The comb's strength in the labels' contest for a harmonic: its salience weighted by the
+    /// register's prior for its F0.
+    fn strength(&self) -> f64 {
+        self.salience * self.register_fit
+    }
 }
 
 /// A label's pitch register: the running, evidence-weighted mean of its log F0.
@@ -87,6 +101,8 @@ pub struct Harmonic {
     register_forgetting: f64,
     /// Register weight at half confidence.
     register_half: f64,
+    /// Exponent of the register's preference in a comb's strength (0: salience alone).
+    register_ownership: f64,
 }
 
 impl Harmonic {
@@ -115,6 +131,7 @@ impl Harmonic {
             register_sigma: cfg.register_semitones * std::f64::consts::LN_2 / 12.0,
             register_forgetting: (-1.0 / (cfg.register_memory_s * frames_per_s).max(1e-9)).exp(),
             register_half: (cfg.register_confidence_s * frames_per_s).max(1e-9),
+            register_ownership: cfg.register_ownership,
         }
     }
 
@@ -205,7 +222,11 @@ impl Harmonic {
             let hi = (centre + COARSE).min(n);
             comb.best(&self.candidates[lo..hi], &prefer, &mut best);
         }
-        self.pitch_of(best.0, best.1)
+        let mut p = self.pitch_of(best.0, best.1);
+        if p.f0 > 0.0 {
+            p.register_fit = power(prefer(p.f0), self.register_ownership);
+        }
+        p
     }
 
     /// The pitch of `mag` (read as [`Harmonic::pitch`] reads it) when its F0 and voicing are
@@ -225,6 +246,7 @@ impl Harmonic {
                 f0: known.f0,
                 voicing: known.voicing.clamp(0.0, 1.0),
                 salience: comb.score(known.f0).1.max(0.0),
+                register_fit: 1.0,
             },
             None => Pitch::default(),
         }
@@ -253,6 +275,7 @@ impl Harmonic {
             f0,
             voicing: v,
             salience: salience.max(0.0),
+            register_fit: 1.0,
         }
     }
 
@@ -285,19 +308,20 @@ impl Harmonic {
 
     /// Each label's harmonic evidence at bin `k`: its voicing times its comb's membership there
     /// times its share of the bin, (its comb's strength / the strongest comb's)^`ownership_exponent`,
-    /// a comb's strength being its salience times its membership. Two labels with the same F0
-    /// compare their saliences; a label whose F0 is a subharmonic of a louder one's loses the
+    /// a comb's strength being its salience times its register fit times its membership. Two
+    /// labels with the same F0 compare their saliences, each weighted by how well the F0 fits
+    /// that label's register; a label whose F0 is a subharmonic of a louder one's loses the
     /// bins the louder comb passes through and keeps those between them.
     pub fn evidence(&self, pitch: &[Pitch], k: usize, out: &mut [f64]) {
         let kf = k as f64;
         let mut top = 0.0f64;
         for (e, p) in out.iter_mut().zip(pitch) {
             *e = self.membership(p.f0, kf);
-            top = top.max(p.salience * *e);
+            top = top.max(p.strength() * *e);
         }
         for (e, p) in out.iter_mut().zip(pitch) {
             *e = if *e > 0.0 {
-                p.voicing * *e * self.share_against(p.salience * *e, top)
+                p.voicing * *e * self.share_against(p.strength() * *e, top)
             } else {
                 0.0
             };
@@ -306,10 +330,10 @@ impl Harmonic {
 
     /// `p`'s share of (fractional) bin `kf` among the combs of `pitch` (which includes `p`).
     fn share(&self, pitch: &[Pitch], p: &Pitch, kf: f64) -> f64 {
-        let own = p.salience * self.membership(p.f0, kf);
+        let own = p.strength() * self.membership(p.f0, kf);
         let top = pitch
             .iter()
-            .map(|q| q.salience * self.membership(q.f0, kf))
+            .map(|q| q.strength() * self.membership(q.f0, kf))
             .fold(own, f64::max);
         self.share_against(own, top)
     }

@@ -133,6 +133,76 @@ fn register_learns_a_labels_f0_and_keeps_it_through_a_neighbours_leak() {
     assert!((far.f0 / 150.0 - 1.0).abs() < 0.01, "{}", far.f0);
 }
 
+/// A register that has learnt `f0` over two seconds of voiced, owned frames.
+fn register_at(h: &Harmonic, f0: f64) -> Register {
+    let mut reg = Register::default();
+    let p = Pitch {
+        f0,
+        voicing: 1.0,
+        salience: 1.0,
+        register_fit: 1.0,
+    };
+    for _ in 0..64 {
+        h.observe(&mut reg, &p, 1.0);
+    }
+    reg
+}
+
+#[test]
+fn of_two_labels_reading_one_f0_the_one_whose_register_holds_it_keeps_its_harmonics() {
+    let h = harmonic();
+    let rel = vec![1.0; N / 2 + 1];
+    // A far talker at 200 Hz (register 200 Hz) and a silent neighbour whose voice sits at
+    // 150 Hz: the talker's reverberation reaches the neighbour's output as strongly as its
+    // own, so both labels read 200 Hz with the same salience.
+    let mag = spectrum(&voiced(200.0, 1.0));
+    let talker = h.pitch(&mag, &rel, &register_at(&h, 200.0), &mut Vec::new());
+    let silent = h.pitch(&mag, &rel, &register_at(&h, 150.0), &mut Vec::new());
+    assert!((talker.f0 / 200.0 - 1.0).abs() < 0.01, "{}", talker.f0);
+    assert!((silent.f0 / 200.0 - 1.0).abs() < 0.01, "{}", silent.f0);
+    assert!(
+        (talker.salience / silent.salience - 1.0).abs() < 0.1,
+        "{talker:?} {silent:?}"
+    );
+    assert!(
+        talker.register_fit > 0.95 && silent.register_fit < 0.7,
+        "{talker:?} {silent:?}"
+    );
+    // The harmonics go to the talker (the claims are read on the low harmonics, where the two
+    // slightly different F0 picks still share their bins).
+    let claims = |h: &Harmonic, pitch: &[Pitch]| -> Vec<[f64; 2]> {
+        [1.0, 2.0, 5.0]
+            .iter()
+            .map(|harm| {
+                let mut e = [0.0; 2];
+                h.evidence(
+                    pitch,
+                    (harm * 200.0 / h.hz_per_bin).round() as usize,
+                    &mut e,
+                );
+                e
+            })
+            .collect()
+    };
+    for e in claims(&h, &[talker, silent]) {
+        assert!(e[0] > 0.8 && e[1] < 0.15, "{e:?}");
+    }
+    // With the register left out of the contest the silent label keeps a third or more of
+    // its claim.
+    let cfg = HarmonicConfig {
+        register_ownership: 0.0,
+        ..HarmonicConfig::default()
+    };
+    let flat = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+    let tied = [
+        flat.pitch(&mag, &rel, &register_at(&flat, 200.0), &mut Vec::new()),
+        flat.pitch(&mag, &rel, &register_at(&flat, 150.0), &mut Vec::new()),
+    ];
+    for e in claims(&flat, &tied) {
+        assert!(e[0] > 0.8 && e[1] > 0.3, "{e:?}");
+    }
+}
+
 #[test]
 fn register_off_leaves_the_search_alone() {
     let cfg = HarmonicConfig {
@@ -149,6 +219,7 @@ fn register_off_leaves_the_search_alone() {
                 f0: 104.0,
                 voicing: 1.0,
                 salience: 1.0,
+                register_fit: 1.0,
             },
             1.0,
         );
@@ -214,6 +285,7 @@ fn a_subharmonic_leak_does_not_own_the_louder_labels_harmonics() {
         f0: 110.0,
         voicing: 1.0,
         salience: 0.4 * p.salience,
+        register_fit: 1.0,
     };
     let pitch = [p, ghost];
     let mut e = [0.0; 2];
