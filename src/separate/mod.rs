@@ -22,6 +22,7 @@
 pub mod blocking;
 pub mod cholesky;
 mod config;
+pub mod direct_power;
 pub mod harmonic;
 pub mod lifecycle;
 pub mod mvdr;

@@ -59,6 +59,9 @@ pub(super) struct Stream {
     pub constraints_changed: bool,
     /// The label's pitch register (harmonic grouping).
     pub register: Register,
+    /// The label's smoothed share of the fitted direct-path power (harmonic grouping's
+    /// activity gate); a new label starts as talking.
+    pub activity: f64,
     /// This frame's known pitch from the target (oracle runs), used instead of the estimate.
     pub known_pitch: Option<VoicePitch>,
 }
@@ -91,6 +94,7 @@ impl Stream {
             steering_changed: true,
             constraints_changed: true,
             register: Register::default(),
+            activity: 1.0,
             known_pitch: None,
         }
     }

@@ -144,7 +144,9 @@ impl HarmonicConfig {
             0.001,
             3600.0,
         )?;
-        in_range("register_ownership", self.register_ownership, 0.0, 10.0)
+        in_range("register_ownership", self.register_ownership, 0.0, 10.0)?;
+        unit_interval("activity", self.activity_low, self.activity_high)?;
+        in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)
     }
 }
 

@@ -103,6 +103,9 @@ pub struct Harmonic {
     register_half: f64,
     /// Exponent of the register's preference in a comb's strength (0: salience alone).
     register_ownership: f64,
+    /// Direct-power share ramp of the activity gate; `None` when the gate is off.
+    activity: Option<(f64, f64)>,
+    activity_smoothing: f64,
 }
 
 impl Harmonic {
@@ -132,6 +135,10 @@ impl Harmonic {
             register_forgetting: (-1.0 / (cfg.register_memory_s * frames_per_s).max(1e-9)).exp(),
             register_half: (cfg.register_confidence_s * frames_per_s).max(1e-9),
             register_ownership: cfg.register_ownership,
+            activity: cfg
+                .activity_gate
+                .then_some((cfg.activity_low, cfg.activity_high)),
+            activity_smoothing: cfg.activity_smoothing,
         }
     }
 
@@ -183,6 +190,25 @@ impl Harmonic {
     /// Whether the grouping changes anything.
     pub fn enabled(&self) -> bool {
         self.boost > 0.0 && !self.candidates.is_empty()
+    }
+
+    /// Whether voicing is scaled by the labels' direct-power shares (the grouping is on and so
+    /// is its activity gate).
+    pub fn gates_activity(&self) -> bool {
+        self.enabled() && self.activity.is_some()
+    }
+
+    /// Folds this frame's direct-power `share` of a label into its smoothed `activity` and
+    /// returns the factor, in [0, 1], its estimated voicing is scaled by (1 with the gate off).
+    pub fn activity_gate(&self, activity: &mut f64, share: f64) -> f64 {
+        let Some((low, high)) = self.activity else {
+            return 1.0;
+        };
+        if share.is_finite() {
+            let a = self.activity_smoothing;
+            *activity = a * *activity + (1.0 - a) * share.clamp(0.0, 1.0);
+        }
+        ((*activity - low) / (high - low)).clamp(0.0, 1.0)
     }
 
     /// The pitch of a magnitude spectrum `mag` (one value per bin from 0), reading bin k with

@@ -20,8 +20,14 @@ impl Separator {
             return;
         }
         self.rls_constants();
+        for (g, fit) in self.direct.iter_mut().enumerate() {
+            if self.work.active[g] {
+                fit.begin(n, false);
+            }
+        }
         for k in self.k_lo..self.k_hi {
             self.fixed_outputs(k);
+            self.fit_direct_power(k);
             self.adaptation_weights(k);
             for i in 0..n {
                 self.beamform(k, i);
@@ -111,6 +117,17 @@ impl Separator {
                     ns.outputs(&w.dsub, m, &w.yg[g], &mut w.ns_out);
                     w.fixed[i] = w.ns_out[0];
                 }
+            }
+        }
+    }
+
+    /// Feeds bin `k`'s group snapshots (after [`Separator::fixed_outputs`] gathered them) to the
+    /// direct-path power fits of the activity gate.
+    fn fit_direct_power(&mut self, k: usize) {
+        let w = &self.work;
+        for (g, fit) in self.direct.iter_mut().enumerate() {
+            if w.active[g] && fit.covers(k) {
+                fit.observe(k, &w.yg[g], &w.walk[g], w.rebuild[g]);
             }
         }
     }
@@ -361,7 +378,7 @@ impl Separator {
                 let r = 1.0 - w.frame_unresolved[k * n + i];
                 w.reliability[k] = r * r;
             }
-            let s = &self.streams[i];
+            let s = &mut self.streams[i];
             w.pitch.push(match (w.priors[i] > 0.0, s.known_pitch) {
                 (false, _) => Pitch::default(),
                 (true, Some(known)) => {
@@ -369,8 +386,16 @@ impl Separator {
                         .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table)
                 }
                 (true, None) => {
-                    self.harmonic
-                        .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table)
+                    let mut p = self.harmonic.pitch(
+                        &w.mag,
+                        &w.reliability,
+                        &s.register,
+                        &mut w.pitch_table,
+                    );
+                    if let Some(fit) = self.direct.get(s.group) {
+                        p.voicing *= self.harmonic.activity_gate(&mut s.activity, fit.share(i));
+                    }
+                    p
                 }
             });
         }

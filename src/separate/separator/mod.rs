@@ -5,6 +5,7 @@ mod bins;
 
 use super::Target;
 use super::config::{ConfigError, SeparatorConfig};
+use super::direct_power::DirectPowerFit;
 use super::harmonic::{Harmonic, Pitch};
 use super::lifecycle::Timing;
 use super::null_steering::NullSteering;
@@ -125,6 +126,9 @@ pub struct Separator {
     timing: Timing,
     post: PostFilter,
     harmonic: Harmonic,
+    /// Per microphone group: the direct-path power fit of the harmonic grouping's activity gate
+    /// (empty when the gate is off).
+    direct: Vec<DirectPowerFit>,
     psd: Vec<f64>,
     psd_ready: bool,
     /// Smoothed power of the reference microphone per bin (post-filter).
@@ -159,6 +163,7 @@ impl Separator {
             },
             post: PostFilter::new(&cfg.post_filter, 1.0),
             harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0, 1.0),
+            direct: Vec::new(),
             psd: Vec::new(),
             psd_ready: false,
             ref_power: Vec::new(),
@@ -364,6 +369,14 @@ impl Separator {
         self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
         self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
         self.harmonic = Harmonic::new(&self.cfg.post_filter.harmonic, hz_per_bin, frames_per_s);
+        self.direct = if self.harmonic.gates_activity() {
+            self.groups
+                .iter()
+                .map(|g| DirectPowerFit::new(&g.mics, self.c, hz_per_bin, bins))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let maxm = self
             .groups
             .iter()
