@@ -4,110 +4,23 @@
 use std::hint::black_box;
 
 use avsep::geometry::{Aabb, Camera, Pixel, Vec3};
+use avsep::track::scenarios::{vo_measurements, vo_step, vo_tracker, vo_truth};
 use avsep::track::{
-    BirthTerm, Gaussian, GlmbTracker, Measurement, MotionModel, Scan, SensorModel, StepInput,
-    Tracker, TrackerConfig,
+    GlmbTracker, Measurement, MotionModel, Scan, SensorModel, StepInput, Tracker, TrackerConfig,
 };
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
-use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
-use rand::{Rng, SeedableRng};
+use nalgebra::Matrix3;
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal, Poisson};
+use rand_distr::{Distribution, Normal};
 
-/// [x vx y vy] at birth, birth step, last step (the scenario of tests/track.rs).
-const VO_TARGETS: [([f64; 4], usize, usize); 12] = [
-    ([0.0, 0.0, 0.0, -10.0], 1, 70),
-    ([400.0, -10.0, -600.0, 5.0], 1, 100),
-    ([-800.0, 20.0, -200.0, -5.0], 1, 70),
-    ([400.0, -7.0, -600.0, -4.0], 20, 100),
-    ([400.0, -2.5, -600.0, 10.0], 20, 100),
-    ([0.0, 7.5, 0.0, -5.0], 20, 100),
-    ([-800.0, 12.0, -200.0, 7.0], 40, 100),
-    ([-200.0, 15.0, 800.0, -10.0], 40, 100),
-    ([-800.0, 3.0, -200.0, 15.0], 60, 100),
-    ([-200.0, -3.0, 800.0, -15.0], 60, 100),
-    ([0.0, -20.0, 0.0, -15.0], 80, 100),
-    ([-200.0, 15.0, 800.0, -5.0], 80, 100),
-];
-
+/// The scenario's 100 step inputs with measurements drawn from `seed`.
 fn vo_inputs(seed: u64) -> Vec<StepInput> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let noise = Normal::new(0.0, 10.0).unwrap();
-    let clutter = Poisson::new(30.0).unwrap();
-    (1..=100usize)
-        .map(|k| {
-            let mut z = Vec::new();
-            for (x0, birth, death) in VO_TARGETS {
-                if k < birth || k > death {
-                    continue;
-                }
-                let n = (k - birth) as f64;
-                let (x, y) = (x0[0] + n * x0[1], x0[2] + n * x0[3]);
-                if rng.random::<f64>() < 0.98 {
-                    z.push(Measurement::Point {
-                        z: vec![x + noise.sample(&mut rng), y + noise.sample(&mut rng)],
-                    });
-                }
-            }
-            let n: f64 = clutter.sample(&mut rng);
-            for _ in 0..n as usize {
-                z.push(Measurement::Point {
-                    z: vec![
-                        rng.random_range(-1000.0..1000.0),
-                        rng.random_range(-1000.0..1000.0),
-                    ],
-                });
-            }
-            StepInput {
-                k: k as u64,
-                t: k as f64,
-                scans: vec![Scan {
-                    sensor: 0,
-                    measurements: z,
-                    activity: None,
-                    sounding: Vec::new(),
-                }],
-            }
-        })
+    vo_measurements(&vo_truth(), seed)
+        .into_iter()
+        .enumerate()
+        .map(|(i, z)| vo_step(i + 1, z))
         .collect()
-}
-
-fn vo_tracker() -> GlmbTracker<4> {
-    let mut cfg = TrackerConfig {
-        survival_probability: 0.99,
-        gate_probability: 0.9999999,
-        ..TrackerConfig::default()
-    };
-    cfg.birth.from_measurements = false;
-    cfg.estimator.hysteresis_steps = 0;
-    cfg.glmb.requested_hypotheses = 1000;
-    cfg.glmb.max_hypotheses = 1000;
-    let motion = MotionModel::<4>::ConstantVelocity {
-        accel_std_m_per_s2: [5.0, 5.0, 0.0],
-    };
-    let sensor = SensorModel::GenericPoint {
-        h: DMatrix::from_row_slice(2, 4, &[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]),
-        r: DMatrix::from_diagonal_element(2, 2, 100.0),
-        p_detect: 0.98,
-        clutter_rate: 30.0,
-        clutter_density: 1.0 / (2000.0 * 2000.0),
-    };
-    let births = [
-        [0.1, 0.1],
-        [400.0, -600.0],
-        [-800.0, -200.0],
-        [-200.0, 800.0],
-    ]
-    .iter()
-    .map(|p| BirthTerm {
-        density: Gaussian {
-            mean: SVector::<f64, 4>::new(p[0], p[1], 0.0, 0.0),
-            cov: SMatrix::<f64, 4, 4>::identity() * 100.0,
-        },
-        existence: 0.03,
-    })
-    .collect();
-    GlmbTracker::new(&cfg, motion, vec![sensor], None, births, 1).unwrap()
 }
 
 fn camera() -> Camera {
@@ -163,7 +76,7 @@ fn benches(c: &mut Criterion) {
     let inputs = vo_inputs(7);
     c.bench_function("vo_scenario_100_steps_1000_hypotheses", |b| {
         b.iter(|| {
-            let mut t = vo_tracker();
+            let mut t = vo_tracker(1);
             for input in &inputs {
                 black_box(t.step(input));
             }

@@ -90,6 +90,7 @@ mod modes;
 mod motion;
 mod occlusion;
 mod scan;
+pub mod scenarios;
 mod sensor;
 mod slice_set;
 
