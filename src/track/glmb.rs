@@ -290,13 +290,8 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
             // that track's existence (the data cannot tell the two apart) and take over its
             // identity later.
             let confirmed = self.suppressing_densities(&entry_w);
-            let ctx = BirthContext {
-                cfg: &self.cfg.birth,
-                ukf: &self.cfg.ukf,
-                region: self.region.as_ref(),
-                sensors: &self.sensors,
-                modes: &self.modes,
-            };
+            let ctx =
+                BirthContext::new(&self.cfg, self.region.as_ref(), &self.sensors, &self.modes);
             let birth_scans = BirthScan::of_step(&scans, &r_u);
             self.pending = births_from_measurements(&ctx, &birth_scans, &confirmed);
         }

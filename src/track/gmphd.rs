@@ -271,13 +271,7 @@ impl<const N: usize> GmphdTracker<N> {
             .filter(|c| c.w >= min_w && matches!(c.dominant(), Some(Tag::Label(_))))
             .map(|c| c.g.clone())
             .collect();
-        let ctx = BirthContext {
-            cfg: &self.cfg.birth,
-            ukf: &self.cfg.ukf,
-            region: self.region.as_ref(),
-            sensors: &self.sensors,
-            modes: &self.modes,
-        };
+        let ctx = BirthContext::new(&self.cfg, self.region.as_ref(), &self.sensors, &self.modes);
         let birth_scans = BirthScan::of_step(scans, r_u);
         births_from_measurements(&ctx, &birth_scans, &confirmed)
             .into_iter()

@@ -9,7 +9,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::config::{BirthConfig, UkfConfig};
+use super::config::{BirthConfig, TrackerConfig, UkfConfig};
 use super::filter::prepare;
 use super::gaussian::Gaussian;
 use super::modes::Modes;
@@ -92,6 +92,24 @@ pub(crate) struct BirthContext<'a, const N: usize> {
     pub region: Option<&'a Aabb>,
     pub sensors: &'a [Sensor<N>],
     pub modes: &'a Modes,
+}
+
+impl<'a, const N: usize> BirthContext<'a, N> {
+    /// The context of a tracker configured by `cfg`, over `region`, with its sensors and modes.
+    pub fn new(
+        cfg: &'a TrackerConfig,
+        region: Option<&'a Aabb>,
+        sensors: &'a [Sensor<N>],
+        modes: &'a Modes,
+    ) -> Self {
+        Self {
+            cfg: &cfg.birth,
+            ukf: &cfg.ukf,
+            region,
+            sensors,
+            modes,
+        }
+    }
 }
 
 /// Kinds of birth in decreasing order of trust.
@@ -350,13 +368,7 @@ mod tests {
         let x = state_of::<6>(&source, &Vec3::zeros());
         let px = sensors[0].measure(&x).unwrap();
         let az = sensors[1].measure(&x).unwrap();
-        let ctx = BirthContext {
-            cfg: &cfg.birth,
-            ukf: &cfg.ukf,
-            region: Some(&region),
-            sensors: &sensors,
-            modes: &modes,
-        };
+        let ctx = BirthContext::new(&cfg, Some(&region), &sensors, &modes);
         let (zc, za) = ([px], [az]);
         let scans = [
             BirthScan {
@@ -415,13 +427,7 @@ mod tests {
         let cfg = TrackerConfig::default();
         let (sensors, modes) = sensors(&cfg);
         let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
-        let ctx = BirthContext {
-            cfg: &cfg.birth,
-            ukf: &cfg.ukf,
-            region: Some(&region),
-            sensors: &sensors,
-            modes: &modes,
-        };
+        let ctx = BirthContext::new(&cfg, Some(&region), &sensors, &modes);
         let za = [Vector3::new(0.3, 0.0, 0.0)];
         let scans = [BirthScan {
             sensor: 1,
@@ -442,13 +448,7 @@ mod tests {
         let cfg = TrackerConfig::default();
         let (sensors, modes) = sensors(&cfg);
         let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
-        let ctx = BirthContext {
-            cfg: &cfg.birth,
-            ukf: &cfg.ukf,
-            region: Some(&region),
-            sensors: &sensors,
-            modes: &modes,
-        };
+        let ctx = BirthContext::new(&cfg, Some(&region), &sensors, &modes);
         // An azimuth towards a point the camera sees well.
         let target = Vec3::new(2.6, 3.0, 1.6);
         let za = [sensors[1]
