@@ -1,30 +1,34 @@
-//! Small dense Hermitian positive-definite systems (at most a few dozen unknowns), solved by
-//! Cholesky factorisation in place on row-major slices, without allocation.
+//! Small dense Hermitian (or real symmetric) positive-definite systems (at most a few dozen
+//! unknowns), solved by Cholesky factorisation in place on row-major slices, without allocation.
 
+use nalgebra::ComplexField;
+
+#[cfg(test)]
 use crate::dsp::Complex;
 
 /// Factors the Hermitian positive-definite `n x n` matrix `a` (row-major, both triangles set) in
 /// place into its lower Cholesky factor L with A = L L^H (the upper triangle is left stale).
-/// Returns false when a pivot is not positive and finite (not positive definite).
+/// Returns false when a pivot is not positive and finite (not positive definite). Complex
+/// (beamformers) or real (the direct-path power fit's normal equations).
 #[inline]
-pub fn factor(a: &mut [Complex], n: usize) -> bool {
+pub fn factor<T: ComplexField<RealField = f64> + Copy>(a: &mut [T], n: usize) -> bool {
     for j in 0..n {
-        let mut diag = a[j * n + j].re;
+        let mut diag = a[j * n + j].real();
         for p in 0..j {
-            diag -= a[j * n + p].norm_sqr();
+            diag -= a[j * n + p].modulus_squared();
         }
         if !(diag > 0.0 && diag.is_finite()) {
             return false;
         }
         let ljj = diag.sqrt();
-        a[j * n + j] = Complex::new(ljj, 0.0);
+        a[j * n + j] = T::from_real(ljj);
         let inv = 1.0 / ljj;
         for i in j + 1..n {
             let mut s = a[i * n + j];
             for p in 0..j {
-                s -= a[i * n + p] * a[j * n + p].conj();
+                s -= a[i * n + p] * a[j * n + p].conjugate();
             }
-            a[i * n + j] = s * inv;
+            a[i * n + j] = s.scale(inv);
         }
     }
     true
@@ -32,22 +36,22 @@ pub fn factor(a: &mut [Complex], n: usize) -> bool {
 
 /// Solves L L^H x = b in place (`b` becomes x) with the factor from [`factor`].
 #[inline]
-pub fn solve(l: &[Complex], n: usize, b: &mut [Complex]) {
+pub fn solve<T: ComplexField<RealField = f64> + Copy>(l: &[T], n: usize, b: &mut [T]) {
     // Forward: L z = b.
     for i in 0..n {
         let mut s = b[i];
         for p in 0..i {
             s -= l[i * n + p] * b[p];
         }
-        b[i] = s / l[i * n + i].re;
+        b[i] = s.unscale(l[i * n + i].real());
     }
     // Backward: L^H x = z.
     for i in (0..n).rev() {
         let mut s = b[i];
         for p in i + 1..n {
-            s -= l[p * n + i].conj() * b[p];
+            s -= l[p * n + i].conjugate() * b[p];
         }
-        b[i] = s / l[i * n + i].re;
+        b[i] = s.unscale(l[i * n + i].real());
     }
 }
 

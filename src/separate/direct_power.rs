@@ -15,6 +15,7 @@
 //! power stays small (paper-linear6, oracle positions, 1-4 kHz: median share 0.07 for a silent
 //! talker, 0.20 for one talking 5 dB or more below a neighbour, 0.52 otherwise).
 
+use super::cholesky;
 use crate::dsp::Complex;
 use crate::geometry::Vec3;
 
@@ -306,7 +307,7 @@ impl Nnls {
     }
 
     /// z = the unconstrained solution on the passive set (zero elsewhere), by Cholesky with a
-    /// small ridge; false when the system is not positive definite.
+    /// small ridge; false when the system is not positive definite or the solution not finite.
     fn solve_passive(&mut self, k: &[f64], b: &[f64], n: usize) -> bool {
         self.idx.clear();
         self.idx.extend((0..n).filter(|&j| self.passive[j]));
@@ -320,41 +321,12 @@ impl Nnls {
             }
             self.rhs.push(b[i]);
         }
-        // In-place Cholesky (lower), then forward and back substitution.
-        let a = &mut self.sub;
-        for j in 0..p {
-            let mut d = a[j * p + j];
-            for q in 0..j {
-                d -= a[j * p + q] * a[j * p + q];
-            }
-            if !(d > 0.0 && d.is_finite()) {
-                return false;
-            }
-            let l = d.sqrt();
-            a[j * p + j] = l;
-            for i in j + 1..p {
-                let mut s = a[i * p + j];
-                for q in 0..j {
-                    s -= a[i * p + q] * a[j * p + q];
-                }
-                a[i * p + j] = s / l;
-            }
+        if !cholesky::factor(&mut self.sub, p) {
+            return false;
         }
-        let r = &mut self.rhs;
-        for i in 0..p {
-            for q in 0..i {
-                r[i] -= a[i * p + q] * r[q];
-            }
-            r[i] /= a[i * p + i];
-        }
-        for i in (0..p).rev() {
-            for q in i + 1..p {
-                r[i] -= a[q * p + i] * r[q];
-            }
-            r[i] /= a[i * p + i];
-        }
+        cholesky::solve(&self.sub, p, &mut self.rhs);
         self.z.fill(0.0);
-        for (&j, v) in self.idx.iter().zip(r.iter()) {
+        for (&j, v) in self.idx.iter().zip(&self.rhs) {
             self.z[j] = *v;
         }
         self.z.iter().all(|v| v.is_finite())

@@ -150,17 +150,14 @@ fn mean_shares(positions: &[Vec3], powers: &[f64], diffuse: f64, frames: usize) 
     sums.iter().map(|s| s / frames as f64).collect()
 }
 
-/// Lower Cholesky factor of the real symmetric `m x m` matrix `g` plus `ridge` on the diagonal.
+/// Lower Cholesky factor of the real symmetric `m x m` matrix `g` plus `ridge` on the diagonal
+/// (the upper triangle left as it was, unread).
 fn cholesky_real(g: &[f64], m: usize, ridge: f64) -> Vec<f64> {
-    let mut l = vec![0.0; m * m];
+    let mut l = g.to_vec();
     for j in 0..m {
-        let d = g[j * m + j] + ridge - (0..j).map(|q| l[j * m + q] * l[j * m + q]).sum::<f64>();
-        l[j * m + j] = d.max(1e-12).sqrt();
-        for i in j + 1..m {
-            let s = g[i * m + j] - (0..j).map(|q| l[i * m + q] * l[j * m + q]).sum::<f64>();
-            l[i * m + j] = s / l[j * m + j];
-        }
+        l[j * m + j] += ridge;
     }
+    assert!(crate::separate::cholesky::factor(&mut l, m));
     l
 }
 
