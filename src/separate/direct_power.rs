@@ -105,11 +105,12 @@ impl DirectPowerFit {
         (self.k1 - self.k0).div_ceil(BIN_STRIDE)
     }
 
-    /// Starts a frame with `n` labels; `restart` forgets the smoothed covariance (the bank
-    /// changed, so its columns mean other labels).
-    pub fn begin(&mut self, n: usize, restart: bool) {
+    /// Starts a frame with `n` labels; a change of their number forgets the smoothed covariance.
+    /// (A label that replaces another within one frame inherits its column for the few frames
+    /// the smoothing remembers; the Gram matrix is rebuilt with the steering.)
+    pub fn begin(&mut self, n: usize) {
         let bins = self.fitted();
-        if n != self.n || restart || self.rhs.len() != bins * (n + 1) {
+        if n != self.n || self.rhs.len() != bins * (n + 1) {
             self.n = n;
             self.rhs.clear();
             self.rhs.resize(bins * (n + 1), -1.0);

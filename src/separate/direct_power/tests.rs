@@ -118,7 +118,7 @@ fn mean_shares(positions: &[Vec3], powers: &[f64], diffuse: f64, frames: usize) 
     let mut sums = vec![0.0; n];
     let mut a = vec![Complex::new(0.0, 0.0); n * m];
     for frame in 0..frames {
-        fit.begin(n, false);
+        fit.begin(n);
         for k in (fit.k0..fit.k1).step_by(BIN_STRIDE) {
             let omega = std::f64::consts::TAU * hz_per_bin * k as f64;
             for (j, s) in steer.iter().enumerate() {
@@ -186,12 +186,12 @@ fn degenerate_input_gives_zero_shares_not_nan() {
     let mics = line6();
     let mut fit = DirectPowerFit::new(&mics, 343.0, 15.625, 513);
     let a = vec![Complex::new(1.0, 0.0); 2 * mics.len()];
-    fit.begin(2, true);
+    fit.begin(2);
     for k in fit.k0..fit.k1 {
         fit.observe(k, &vec![Complex::new(0.0, 0.0); mics.len()], &a, true);
     }
     assert_eq!((fit.share(0), fit.share(1), fit.share(5)), (0.0, 0.0, 0.0));
-    fit.begin(2, false);
+    fit.begin(2);
     for k in fit.k0..fit.k1 {
         fit.observe(k, &vec![Complex::new(f64::NAN, 0.0); mics.len()], &a, false);
     }

@@ -22,7 +22,7 @@ impl Separator {
         self.rls_constants();
         for (g, fit) in self.direct.iter_mut().enumerate() {
             if self.work.active[g] {
-                fit.begin(n, false);
+                fit.begin(n);
             }
         }
         for k in self.k_lo..self.k_hi {
