@@ -146,7 +146,14 @@ impl HarmonicConfig {
         )?;
         in_range("register_ownership", self.register_ownership, 0.0, 10.0)?;
         unit_interval("activity", self.activity_low, self.activity_high)?;
-        in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)
+        in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)?;
+        in_range("salience_whitening", self.salience_whitening, 0.0, 2.0)?;
+        in_range(
+            "whitening_bandwidth_hz",
+            self.whitening_bandwidth_hz,
+            0.0,
+            8000.0,
+        )
     }
 }
 

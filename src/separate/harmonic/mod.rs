@@ -46,7 +46,8 @@ pub struct Pitch {
     pub f0: f64,
     /// Voicing in [0, 1] from the normalised comb score (0 at or below `voicing_low`).
     pub voicing: f64,
-    /// Mean peak-minus-valley magnitude over the comb's harmonics (the scale of the input).
+    /// Mean peak-minus-valley magnitude over the comb's harmonics (the scale of the input;
+    /// relative to the mixture's local level once [`Harmonic::whiten_salience`] has measured it).
     pub salience: f64,
     /// How well the F0 fits the label's pitch register: its preference there, in (0, 1], to
     /// the power `register_ownership` (1 without a register or for a known pitch).
@@ -106,6 +107,10 @@ pub struct Harmonic {
     /// Direct-power share ramp of the activity gate; `None` when the gate is off.
     activity: Option<(f64, f64)>,
     activity_smoothing: f64,
+    /// Power of the mixture's local level that divides a contest salience (0: raw magnitudes).
+    salience_whitening: f64,
+    /// Half-width (bins) of the band the local level is measured over.
+    whitening_half_width: usize,
 }
 
 impl Harmonic {
@@ -139,6 +144,10 @@ impl Harmonic {
                 .activity_gate
                 .then_some((cfg.activity_low, cfg.activity_high)),
             activity_smoothing: cfg.activity_smoothing,
+            salience_whitening: cfg.salience_whitening,
+            whitening_half_width: (0.5 * cfg.whitening_bandwidth_hz / hz_per_bin.max(1e-12))
+                .round()
+                .max(0.0) as usize,
         }
     }
 
@@ -201,14 +210,84 @@ impl Harmonic {
     /// Folds this frame's direct-power `share` of a label into its smoothed `activity` and
     /// returns the factor, in [0, 1], its estimated voicing is scaled by (1 with the gate off).
     pub fn activity_gate(&self, activity: &mut f64, share: f64) -> f64 {
-        let Some((low, high)) = self.activity else {
+        if self.activity.is_none() {
             return 1.0;
-        };
+        }
         if share.is_finite() {
             let a = self.activity_smoothing;
             *activity = a * *activity + (1.0 - a) * share.clamp(0.0, 1.0);
         }
-        ((*activity - low) / (high - low)).clamp(0.0, 1.0)
+        self.activity_level(*activity)
+    }
+
+    /// The gate's factor, in [0, 1], for a smoothed share `activity` (1 with the gate off).
+    pub fn activity_level(&self, activity: f64) -> f64 {
+        match self.activity {
+            Some((low, high)) => ((activity - low) / (high - low)).clamp(0.0, 1.0),
+            None => 1.0,
+        }
+    }
+
+    /// The divisor of each bin's magnitude in a contest salience, for bins `lo..len`: the
+    /// mixture's RMS magnitude over the whitening band around the bin (`power(k)` is the
+    /// mixture's power in bin k), to the power `salience_whitening`. Other bins, and every bin
+    /// without whitening, get 1.
+    pub fn whitening(
+        &self,
+        power: impl Fn(usize) -> f64,
+        lo: usize,
+        len: usize,
+        out: &mut Vec<f64>,
+    ) {
+        out.clear();
+        out.resize(len, 1.0);
+        if self.salience_whitening <= 0.0 || lo >= len {
+            return;
+        }
+        let hw = self.whitening_half_width;
+        // A window sliding over [max(lo, k - hw), min(len - 1, k + hw)].
+        let (mut sum, mut count) = (0.0, 0usize);
+        for j in lo..(lo + hw + 1).min(len) {
+            sum += power(j);
+            count += 1;
+        }
+        let e = 0.5 * self.salience_whitening;
+        for (k, o) in out.iter_mut().enumerate().take(len).skip(lo) {
+            let mean = sum.max(0.0) / count.max(1) as f64;
+            *o = if mean > 0.0 { mean.powf(e) } else { 1.0 };
+            if k >= lo + hw {
+                sum -= power(k - hw);
+                count -= 1;
+            }
+            if k + hw + 1 < len {
+                sum += power(k + hw + 1);
+                count += 1;
+            }
+        }
+    }
+
+    /// Re-measures `p`'s salience, the strength it contests harmonics with, on `mag` divided by
+    /// the mixture's local level `level` (from [`Harmonic::whitening`]), so the loud harmonics
+    /// below about 500 Hz, where spatial gains are least reliable, do not decide alone. The
+    /// F0 itself was found on `mag`. `whitened` and `scratch` are scratch.
+    pub fn whiten_salience(
+        &self,
+        p: &mut Pitch,
+        mag: &[f64],
+        level: &[f64],
+        reliability: &[f64],
+        whitened: &mut Vec<f64>,
+        scratch: &mut Vec<[f64; 4]>,
+    ) {
+        // A NaN F0 is no pitch either.
+        if self.salience_whitening <= 0.0 || p.f0.is_nan() || p.f0 <= 0.0 {
+            return;
+        }
+        whitened.clear();
+        whitened.extend(mag.iter().zip(level).map(|(m, l)| m / l));
+        if let Some(comb) = Comb::new(whitened, reliability, self.k_max, self.hz_per_bin, scratch) {
+            p.salience = comb.score(p.f0).1.max(0.0);
+        }
     }
 
     /// The pitch of a magnitude spectrum `mag` (one value per bin from 0), reading bin k with

@@ -409,3 +409,104 @@ fn a_known_pitch_is_kept_and_its_combs_salience_measured() {
         assert_eq!(h.known_pitch(&mag, &rel, k, &mut scratch), Pitch::default());
     }
 }
+
+#[test]
+fn whitening_is_the_local_rms_magnitude_to_its_power() {
+    let h = harmonic();
+    let mut s = 5u64;
+    let power: Vec<f64> = (0..300).map(|_| (uniform(&mut s) + 0.5).powi(2)).collect();
+    let (lo, len) = (3, 260);
+    let mut out = Vec::new();
+    h.whitening(|k| power[k], lo, len, &mut out);
+    assert_eq!(out.len(), len);
+    let hw = h.whitening_half_width;
+    assert_eq!(hw, 8, "250 Hz at 15.6 Hz per bin");
+    for (k, v) in out.iter().enumerate() {
+        let want = if k < lo {
+            1.0
+        } else {
+            let (a, b) = (k.saturating_sub(hw).max(lo), (k + hw + 1).min(len));
+            let mean = power[a..b].iter().sum::<f64>() / (b - a) as f64;
+            mean.powf(0.5 * HarmonicConfig::default().salience_whitening)
+        };
+        assert!(
+            (v - want).abs() < 1e-9 * want,
+            "bin {k}: {v} against {want}"
+        );
+    }
+    // Off: every divisor is 1.
+    let off = Harmonic::new(
+        &HarmonicConfig {
+            salience_whitening: 0.0,
+            ..HarmonicConfig::default()
+        },
+        FS / N as f64,
+        FS / (N / 2) as f64,
+    );
+    off.whitening(|k| power[k], lo, len, &mut out);
+    assert!(out.iter().all(|&v| v == 1.0));
+}
+
+#[test]
+fn of_two_labels_reading_one_f0_the_upper_harmonics_decide_whose_it_is() {
+    // One talker at 200 Hz seen by two labels. The first label's spatial gains pass the loud
+    // harmonics below 500 Hz fully (there a small array's gains follow the room, not the
+    // talker) and the rest at 0.1; the second label's pass the low ones at 0.3 and the rest
+    // fully: the talker is the second label's. Raw magnitudes let the two loud low harmonics
+    // decide; measured against the mixture's local level, every harmonic counts.
+    let h = harmonic();
+    let rel = vec![1.0; N / 2 + 1];
+    let hz = FS / N as f64;
+    // Speech-like tilt: the harmonics fall as 1/h^2.
+    let x: Vec<f64> = (0..N)
+        .map(|t| {
+            let t = t as f64 / FS;
+            (1..20)
+                .map(|h| {
+                    let h = f64::from(h);
+                    (std::f64::consts::TAU * h * 200.0 * t + h).sin() / (h * h)
+                })
+                .sum()
+        })
+        .collect();
+    let mix = spectrum(&x);
+    let apply = |low: f64, high: f64| -> Vec<f64> {
+        mix.iter()
+            .enumerate()
+            .map(|(k, m)| m * if k as f64 * hz < 500.0 { low } else { high })
+            .collect()
+    };
+    let (first, second) = (apply(1.0, 0.1), apply(0.3, 1.0));
+    let reg = Register::default();
+    let mut level = Vec::new();
+    h.whitening(|k| mix[k] * mix[k], 0, h.top_bin(), &mut level);
+    let (mut whitened, mut scratch) = (Vec::new(), Vec::new());
+    let mut pitches = Vec::new();
+    for mag in [&first, &second] {
+        let mut p = h.pitch(mag, &rel, &reg, &mut scratch);
+        assert!((p.f0 / 200.0 - 1.0).abs() < 0.02, "{p:?}");
+        let raw = p.salience;
+        h.whiten_salience(&mut p, mag, &level, &rel, &mut whitened, &mut scratch);
+        pitches.push((raw, p));
+    }
+    let (raw, white) = (
+        [pitches[0].0, pitches[1].0],
+        [pitches[0].1.salience, pitches[1].1.salience],
+    );
+    assert!(raw[0] > raw[1], "raw saliences {raw:?}");
+    assert!(white[1] > 1.3 * white[0], "whitened saliences {white:?}");
+    // The unresolved bin of the second harmonic goes to the second label, where the raw
+    // saliences gave it to the first.
+    let bin = (400.0 / hz).round() as usize;
+    let claims = |a: f64, b: f64| {
+        let (mut p, mut q) = (pitches[0].1, pitches[1].1);
+        (p.salience, q.salience) = (a, b);
+        let mut e = [0.0; 2];
+        h.evidence(&[p, q], bin, &mut e);
+        e
+    };
+    let e = claims(white[0], white[1]);
+    assert!(e[1] > 2.0 * e[0], "whitened contest {e:?}");
+    let e = claims(raw[0], raw[1]);
+    assert!(e[0] > 2.0 * e[1], "raw contest {e:?}");
+}

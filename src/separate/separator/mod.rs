@@ -93,6 +93,10 @@ struct Work {
     reliability: Vec<f64>,
     /// Interpolation table of the F0 analysis.
     pitch_table: Vec<[f64; 4]>,
+    /// Per bin: the mixture's local level that divides contest saliences, and a stream's
+    /// magnitudes divided by it.
+    level: Vec<f64>,
+    whitened: Vec<f64>,
     /// Per stream: this frame's pitch, how much of it is the stream's own, and (per bin) its
     /// harmonic evidence.
     pitch: Vec<Pitch>,
