@@ -30,6 +30,11 @@ pub struct ProcessArgs {
     /// truth signal) instead of estimating it, to measure the grouping with the right pitch.
     #[arg(long, requires = "oracle_tracks")]
     pub oracle_pitch: bool,
+    /// With --oracle-tracks: write as each label's audio the ideal ratio mask of its true source
+    /// on the reference microphone (from the truth images) instead of the separator's output:
+    /// the ceiling of a single-channel mask, to measure the separator against.
+    #[arg(long, requires = "oracle_tracks")]
+    pub oracle_mask: bool,
     /// Print the run summary as JSON instead of a short report.
     #[arg(long)]
     pub json: bool,
@@ -67,6 +72,7 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
         OfflineOptions {
             oracle_tracks: args.oracle_tracks,
             oracle_pitch: args.oracle_pitch,
+            oracle_mask: args.oracle_mask,
             ..Default::default()
         },
         &|f| bar.set((f * 1000.0) as u64),

@@ -9,6 +9,7 @@ pub mod diarization;
 mod events;
 pub mod input;
 pub mod offline;
+mod oracle_mask;
 mod sensor_queue;
 mod separation;
 mod session;

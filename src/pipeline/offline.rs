@@ -15,7 +15,10 @@ use super::PipelineEvent;
 use super::config::{ConfigError, PipelineConfig};
 use super::diarization::{Diarizer, to_rttm};
 use super::input::InputError;
+use super::oracle_mask::ideal_ratio_mask;
 use super::session::{Pipeline, PipelineStats};
+use super::stages::oracle_label;
+use crate::dsp::FrameGeometry;
 
 /// Options of an offline run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,6 +28,10 @@ pub struct OfflineOptions {
     /// With `oracle_tracks`: the harmonic grouping reads each true source's pitch from its
     /// truth signal instead of estimating it.
     pub oracle_pitch: bool,
+    /// With `oracle_tracks`: each label's audio is the ideal ratio mask of its true source on
+    /// the reference microphone (from the truth images) instead of the separator's output, the
+    /// ceiling a separator is measured against.
+    pub oracle_mask: bool,
     /// Audio is pushed in blocks of this many sample frames (as a client would stream it).
     pub block_samples: usize,
 }
@@ -34,6 +41,7 @@ impl Default for OfflineOptions {
         Self {
             oracle_tracks: false,
             oracle_pitch: false,
+            oracle_mask: false,
             block_samples: 1024,
         }
     }
@@ -68,6 +76,8 @@ pub struct RunSummary {
     pub oracle_tracks: bool,
     /// Whether the harmonic grouping was given the true sources' pitch.
     pub oracle_pitch: bool,
+    /// Whether the audio is the truth's ideal ratio mask instead of the separator's output.
+    pub oracle_mask: bool,
     /// Labels ever reported.
     pub tracks: Vec<String>,
     /// Number of speech segments in the diarization.
@@ -218,6 +228,11 @@ pub fn process_scene(
             ProcessError::Scene(format!("{}: --oracle-pitch: {e}", scene.dir.display()))
         })?;
     }
+    let masked = if opts.oracle_mask {
+        Some(oracle_mask_streams(scene, &cfg, opts.oracle_tracks)?)
+    } else {
+        None
+    };
     let frames = scene.audio.as_ref().map_or(0, Audio::frames);
     let mut sink = OutputSink::create(out, frames, pipeline.clock().step_s())?;
     feed_scene(
@@ -227,6 +242,9 @@ pub fn process_scene(
         opts.block_samples,
         progress,
     )?;
+    if let Some(streams) = masked {
+        sink.audio = streams;
+    }
     let file_id = scene
         .dir
         .file_name()
@@ -247,6 +265,7 @@ pub fn process_scene(
         },
         oracle_tracks: opts.oracle_tracks,
         oracle_pitch: opts.oracle_pitch,
+        oracle_mask: opts.oracle_mask,
         tracks: written.labels.iter().map(ToString::to_string).collect(),
         speech_segments: written.speech_segments,
         warnings: written.warnings,
@@ -256,6 +275,69 @@ pub fn process_scene(
     };
     write_json(&out.join(files::SUMMARY), &summary)?;
     Ok(summary)
+}
+
+/// Each true source's stream by the ideal ratio mask on the reference microphone, under its
+/// oracle label, with the separator's framing; the error says what the scene lacks.
+fn oracle_mask_streams(
+    scene: &Scene,
+    cfg: &PipelineConfig,
+    oracle_tracks: bool,
+) -> Result<BTreeMap<Label, Vec<f32>>, ProcessError> {
+    let lacks = |what: &str| {
+        ProcessError::Scene(format!(
+            "{}: --oracle-mask needs {what}",
+            scene.dir.display()
+        ))
+    };
+    if !oracle_tracks {
+        return Err(lacks(
+            "--oracle-tracks (its streams are the true sources' labels)",
+        ));
+    }
+    let truth = scene
+        .truth
+        .as_ref()
+        .ok_or_else(|| lacks("a scene with truth"))?;
+    let audio = scene
+        .audio
+        .as_ref()
+        .ok_or_else(|| lacks("a scene with audio"))?;
+    let reference = scene
+        .layout
+        .reference_channel()
+        .filter(|&c| c < audio.channels)
+        .ok_or_else(|| lacks("a reference microphone in the audio"))?;
+    let mixture: Vec<f64> = audio
+        .samples
+        .iter()
+        .skip(reference)
+        .step_by(audio.channels.max(1))
+        .map(|&v| f64::from(v))
+        .collect();
+    let images = truth
+        .sources
+        .iter()
+        .map(|s| {
+            let signal = s.signal.as_ref().ok_or_else(|| {
+                lacks(&format!(
+                    "every truth source's signal (source {:?} has none)",
+                    s.id
+                ))
+            })?;
+            Ok(signal.iter().map(|&v| f64::from(v)).collect::<Vec<f64>>())
+        })
+        .collect::<Result<Vec<_>, ProcessError>>()?;
+    let refs: Vec<&[f64]> = images.iter().map(Vec::as_slice).collect();
+    let geometry = FrameGeometry {
+        frame: cfg.separate.frame,
+        hop: cfg.separate.hop,
+    };
+    Ok(ideal_ratio_mask(&mixture, &refs, geometry)
+        .into_iter()
+        .enumerate()
+        .map(|(i, y)| (oracle_label(i), y.into_iter().map(|v| v as f32).collect()))
+        .collect())
 }
 
 /// Feeds the scene's audio in blocks of `block_samples`, and its camera frames and device
