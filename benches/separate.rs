@@ -6,6 +6,7 @@ use std::hint::black_box;
 use avsep::dsp::{Complex, MultiSpectrum};
 use avsep::geometry::{Layout, MicArray, Vec3};
 use avsep::label::Label;
+use avsep::separate::harmonic::{HarmonicFit, hann_transform};
 use avsep::separate::{Separator, SeparatorConfig, Target};
 use criterion::{Criterion, criterion_group};
 
@@ -101,7 +102,36 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench);
+/// The harmonic amplitude fit of one frame's bins below 1 kHz with three wholly voiced labels
+/// at the lowest F0s the search allows (the most columns: 14 harmonics each), which the
+/// random-phase hops above never reach (no label reads a pitch in noise).
+fn bench_fit(c: &mut Criterion) {
+    let (frame, hz) = (1024, 16_000.0 / 1024.0);
+    let top = (1000.0 / hz) as usize + 1;
+    let f0s = [70.0, 74.0, 81.0];
+    let mut x = vec![Complex::new(0.0, 0.0); top];
+    for (i, f0) in f0s.iter().enumerate() {
+        let mut h = 1.0;
+        while h * f0 < 1000.0 {
+            let nu = h * f0 / hz;
+            for (k, v) in x.iter_mut().enumerate() {
+                *v += Complex::from_polar(1.0 / h, i as f64 + h)
+                    * hann_transform(k as f64 - nu, frame);
+            }
+            h += 1.0;
+        }
+    }
+    let mut fit = HarmonicFit::new(frame, hz, top, 1e-3);
+    let (mut power, mut residual) = (Vec::new(), Vec::new());
+    c.bench_function("separate/harmonic_fit/3_voices_70hz", |b| {
+        b.iter(|| {
+            let ok = fit.fit(black_box(&x), &f0s, |_, _| 1.0, &mut power, &mut residual);
+            black_box((ok, &power));
+        })
+    });
+}
+
+criterion_group!(benches, bench, bench_fit);
 
 /// `AVSEP_SEPARATE_ITERS=n` runs n hops of the default (adapting GSC) without criterion, for
 /// measuring CPU time with `perf stat` on a loaded machine.

@@ -204,3 +204,39 @@ fn survey() {
         );
     }
 }
+
+/// Two talkers 25 degrees apart, 1.5 m from a 6-microphone line 20 cm long, in a room with
+/// RT60 0.3 s: below 1 kHz the array cannot tell them apart, and there the harmonic amplitude
+/// fit divides each bin by the power each voice has in it rather than handing it whole to the
+/// stronger comb.
+#[test]
+fn the_harmonic_fit_separates_two_voices_the_array_cannot_resolve() {
+    let mics: Vec<Vec3> = (0..6)
+        .map(|i| Vec3::new(2.9 + 0.04 * f64::from(i), 0.8, 1.5))
+        .collect();
+    let centre = Vec3::new(3.0, 0.8, 1.5);
+    let at = |deg: f64| {
+        let a = f64::to_radians(deg);
+        centre + Vec3::new(1.5 * a.cos(), 1.5 * a.sin(), 0.1)
+    };
+    let signals = vec![
+        sim::speech(6.0, FS, 120.0, 11),
+        sim::speech(6.0, FS, 205.0, 12),
+    ];
+    let mixture = room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, 9);
+    let targets = |_: usize, t: f64| oracle(&mixture, t);
+    let fit_off: SeparatorConfig =
+        serde_json::from_str(r#"{"post_filter": {"harmonic": {"fit_below_hz": 0.0}}}"#).unwrap();
+    let score =
+        |cfg: &SeparatorConfig| Scores::of(&mixture, &run(&mixture, cfg, true, targets), 1.0);
+    let (on, off) = (score(&SeparatorConfig::default()), score(&fit_off));
+    println!("{}\n{}", on.line("fit"), off.line("no fit"));
+    // Measured: SI-SDR +8.9 against +7.3 dB, SIR +11.6 against +10.4 dB.
+    assert!(
+        on.sir_improvement() > off.sir_improvement() + 0.8,
+        "SIR improvement {:.2} dB with the fit, {:.2} dB without",
+        on.sir_improvement(),
+        off.sir_improvement()
+    );
+    assert!(on.si_sdr_improvement() > off.si_sdr_improvement() + 1.0);
+}

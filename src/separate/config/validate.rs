@@ -153,7 +153,16 @@ impl HarmonicConfig {
             self.whitening_bandwidth_hz,
             0.0,
             8000.0,
-        )
+        )?;
+        in_range("fit_below_hz", self.fit_below_hz, 0.0, 8000.0)?;
+        in_range("fit_min_voicing", self.fit_min_voicing, 0.0, 1.0)?;
+        if !(self.fit_loading > 0.0 && self.fit_loading <= 1e3) {
+            return Err(ConfigError::new(
+                "fit_loading",
+                format!("must be in (0, 1000], got {}", self.fit_loading),
+            ));
+        }
+        Ok(())
     }
 }
 

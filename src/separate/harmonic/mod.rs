@@ -25,6 +25,9 @@ use crate::dsp::{Complex, VoicePitch};
 use comb::{COARSE, Comb, REFINED, Score, hann_power};
 
 mod comb;
+mod fit;
+
+pub use fit::{HarmonicFit, hann_transform};
 
 /// Relative step of the F0 candidate grid (0.5 %: the 20th harmonic moves by a tenth of its
 /// frequency's bin spacing at 2 kHz and 16 kHz / 1024). Half of it, with the analysis read
@@ -431,6 +434,14 @@ impl Harmonic {
                 0.0
             };
         }
+    }
+
+    /// Label `i`'s claim on its own harmonic at (fractional) bin `kf`: its voicing times its
+    /// share there in the labels' contest (as in [`Harmonic::evidence`]).
+    pub fn claim(&self, pitch: &[Pitch], i: usize, kf: f64) -> f64 {
+        pitch
+            .get(i)
+            .map_or(0.0, |p| p.voicing * self.share(pitch, p, kf))
     }
 
     /// `p`'s share of (fractional) bin `kf` among the combs of `pitch` (which includes `p`).

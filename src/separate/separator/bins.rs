@@ -7,7 +7,7 @@ use crate::label::Label;
 use crate::separate::config::{
     AdaptationConfig, BeamformerKind, PostFilterTarget, SeparatorConfig,
 };
-use crate::separate::harmonic::{self, Pitch};
+use crate::separate::harmonic;
 use crate::separate::mvdr;
 use crate::separate::rls::{self, RlsStep};
 use crate::separate::stream::Stream;
@@ -351,100 +351,6 @@ impl Separator {
                 }
             }
         }
-    }
-
-    /// Estimates each stream's F0 from its resolved bins and regroups the unresolved ones.
-    fn regroup_harmonic(&mut self, to_ref: bool) {
-        let n = self.streams.len();
-        let (ch, rf) = (self.channels, self.reference);
-        let w = &mut self.work;
-        w.pitch.clear();
-        // The F0 analysis reads bins up to its top frequency only; those below k_lo stay zero.
-        let top = self.harmonic.top_bin().min(self.k_hi);
-        let len = top.max(self.k_lo);
-        w.mag.clear();
-        w.mag.resize(len, 0.0);
-        w.reliability.clear();
-        w.reliability.resize(len, 0.0);
-        let y = &w.y;
-        self.harmonic
-            .whitening(|k| y[k * ch + rf].norm_sqr(), self.k_lo, top, &mut w.level);
-        for i in 0..n {
-            let p = self.stream_pitch(i, to_ref, top);
-            self.work.pitch.push(p);
-        }
-        let w = &mut self.work;
-        w.ownership.resize(n, 0.0);
-        w.evidence.resize(n, 0.0);
-        self.harmonic.ownership(&w.pitch, &mut w.ownership);
-        for ((s, p), o) in self.streams.iter_mut().zip(&w.pitch).zip(&w.ownership) {
-            self.harmonic.observe(&mut s.register, p, *o);
-        }
-        let floor = self.post.floor();
-        for k in self.k_lo..self.k_hi {
-            let u = &w.frame_unresolved[k * n..(k + 1) * n];
-            if u.iter().all(|&x| x <= 0.0) {
-                continue;
-            }
-            self.harmonic.evidence(&w.pitch, k, &mut w.evidence);
-            self.harmonic.regroup(
-                &mut w.frame_gains[k * n..(k + 1) * n],
-                u,
-                &w.evidence,
-                floor,
-                &mut w.shares,
-            );
-        }
-    }
-
-    /// Stream `i`'s pitch this frame, read from its post-filtered magnitudes (of the reference
-    /// microphone with `to_ref`, else of its beamformer) up to bin `top`, with its activity
-    /// gate folded in and its contest salience measured against the mixture's local level.
-    fn stream_pitch(&mut self, i: usize, to_ref: bool, top: usize) -> Pitch {
-        let n = self.streams.len();
-        let (ch, rf) = (self.channels, self.reference);
-        let w = &mut self.work;
-        if w.priors[i] <= 0.0 {
-            return Pitch::default();
-        }
-        for k in self.k_lo..top {
-            let g = w.frame_gains[k * n + i];
-            let v = if to_ref {
-                w.y[k * ch + rf]
-            } else {
-                w.frame_bf[k * n + i]
-            };
-            w.mag[k] = g * v.norm_sqr().sqrt();
-            let r = 1.0 - w.frame_unresolved[k * n + i];
-            w.reliability[k] = r * r;
-        }
-        let s = &mut self.streams[i];
-        let gate = match self.direct.get(s.group) {
-            Some(fit) => self.harmonic.activity_gate(&mut s.activity, fit.share(i)),
-            None => 1.0,
-        };
-        let mut p = match s.known_pitch {
-            Some(known) => {
-                self.harmonic
-                    .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table)
-            }
-            None => {
-                let mut p =
-                    self.harmonic
-                        .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table);
-                p.voicing *= gate;
-                p
-            }
-        };
-        self.harmonic.whiten_salience(
-            &mut p,
-            &w.mag,
-            &w.level,
-            &w.reliability,
-            &mut w.whitened,
-            &mut w.pitch_table,
-        );
-        p
     }
 }
 

@@ -2,11 +2,12 @@
 
 mod bank;
 mod bins;
+mod grouping;
 
 use super::Target;
 use super::config::{ConfigError, SeparatorConfig};
 use super::direct_power::DirectPowerFit;
-use super::harmonic::{Harmonic, Pitch};
+use super::harmonic::{Harmonic, HarmonicFit, Pitch};
 use super::lifecycle::Timing;
 use super::null_steering::NullSteering;
 use super::postfilter::{PostFilter, PostState};
@@ -104,6 +105,13 @@ struct Work {
     evidence: Vec<f64>,
     /// Per stream: its weight in the current bin's regrouping.
     shares: Vec<f64>,
+    /// The harmonic amplitude fit's F0s (per stream), fitted power (per stream and bin) and
+    /// residual (per bin).
+    fit_f0s: Vec<f64>,
+    /// The reference microphone's bins below the fit's top.
+    fit_x: Vec<Complex>,
+    fit_power: Vec<f64>,
+    fit_residual: Vec<f64>,
     energy: Vec<f64>,
     present: Vec<bool>,
 }
@@ -130,6 +138,8 @@ pub struct Separator {
     timing: Timing,
     post: PostFilter,
     harmonic: Harmonic,
+    /// The harmonic grouping's amplitude fit of the low bins (fits nothing when off).
+    harmonic_fit: HarmonicFit,
     /// Per microphone group: the direct-path power fit of the harmonic grouping's activity gate
     /// (empty when the gate is off).
     direct: Vec<DirectPowerFit>,
@@ -167,6 +177,7 @@ impl Separator {
             },
             post: PostFilter::new(&cfg.post_filter, 1.0),
             harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0, 1.0),
+            harmonic_fit: HarmonicFit::default(),
             direct: Vec::new(),
             psd: Vec::new(),
             psd_ready: false,
@@ -373,6 +384,9 @@ impl Separator {
         self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
         self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
         self.harmonic = Harmonic::new(&self.cfg.post_filter.harmonic, hz_per_bin, frames_per_s);
+        let hcfg = &self.cfg.post_filter.harmonic;
+        let fit_top = ((hcfg.fit_below_hz / hz_per_bin).ceil() as usize).min(self.k_hi);
+        self.harmonic_fit = HarmonicFit::new(geom.frame, hz_per_bin, fit_top, hcfg.fit_loading);
         self.direct = if self.harmonic.gates_activity() {
             self.groups
                 .iter()
