@@ -18,6 +18,10 @@ use crate::separate::cholesky;
 const HALF_WIDTH: usize = 3;
 /// Columns below this claim are left out (their regularisation would hold them near zero).
 const MIN_PRIOR: f64 = 1e-3;
+/// At most this many columns, the best claimed kept: the solve grows with their cube, and
+/// three voices at the lowest F0 need 42 (about 40 us), so a room of many voiced labels stays
+/// within a hop's budget.
+const MAX_COLUMNS: usize = 64;
 
 /// One harmonic's column.
 #[derive(Debug, Clone, Copy)]
@@ -100,6 +104,11 @@ impl HarmonicFit {
                 }
                 centre += step;
             }
+        }
+        if self.columns.len() > MAX_COLUMNS {
+            self.columns
+                .sort_unstable_by(|a, b| b.prior.total_cmp(&a.prior));
+            self.columns.truncate(MAX_COLUMNS);
         }
         let n = self.columns.len();
         if n == 0 || !self.solve(x) {
@@ -293,5 +302,23 @@ mod tests {
         assert!(fit.fit(&sx, &[180.0, 180.0], claims, &mut power, &mut residual));
         let (p0, p1): (f64, f64) = (power[..top].iter().sum(), power[top..].iter().sum());
         assert!(p0 > 50.0 * p1, "{p0} against {p1}");
+    }
+
+    #[test]
+    fn many_voiced_labels_are_fitted_within_the_column_cap() {
+        let hz = FS / N as f64;
+        let top = (1000.0 / hz) as usize;
+        let f0s: Vec<f64> = (0..8).map(|i| 70.0 + 3.0 * f64::from(i)).collect();
+        let mut x = vec![Complex::new(0.0, 0.0); top];
+        x[10] = Complex::new(1.0, 0.0);
+        let mut fit = HarmonicFit::new(N, hz, top, 1e-3);
+        let (mut power, mut residual) = (Vec::new(), Vec::new());
+        // Label 0's claim is the strongest: its columns are all kept.
+        let claims = |label: usize, _| if label == 0 { 1.0 } else { 0.5 };
+        assert!(fit.fit(&x, &f0s, claims, &mut power, &mut residual));
+        assert_eq!(fit.columns.len(), MAX_COLUMNS);
+        let kept = fit.columns.iter().filter(|c| c.label == 0).count();
+        assert_eq!(kept, (1000.0 / 70.0) as usize);
+        assert!(power.iter().chain(&residual).all(|v| v.is_finite()));
     }
 }
