@@ -309,11 +309,9 @@ fn oracle_mask_streams(
         .filter(|&c| c < audio.channels)
         .ok_or_else(|| lacks("a reference microphone in the audio"))?;
     let mixture: Vec<f64> = audio
-        .samples
-        .iter()
-        .skip(reference)
-        .step_by(audio.channels.max(1))
-        .map(|&v| f64::from(v))
+        .channel(reference)
+        .into_iter()
+        .map(f64::from)
         .collect();
     let images = truth
         .sources

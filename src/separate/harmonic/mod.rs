@@ -213,22 +213,14 @@ impl Harmonic {
     /// Folds this frame's direct-power `share` of a label into its smoothed `activity` and
     /// returns the factor, in [0, 1], its estimated voicing is scaled by (1 with the gate off).
     pub fn activity_gate(&self, activity: &mut f64, share: f64) -> f64 {
-        if self.activity.is_none() {
+        let Some((low, high)) = self.activity else {
             return 1.0;
-        }
+        };
         if share.is_finite() {
             let a = self.activity_smoothing;
             *activity = a * *activity + (1.0 - a) * share.clamp(0.0, 1.0);
         }
-        self.activity_level(*activity)
-    }
-
-    /// The gate's factor, in [0, 1], for a smoothed share `activity` (1 with the gate off).
-    pub fn activity_level(&self, activity: f64) -> f64 {
-        match self.activity {
-            Some((low, high)) => ((activity - low) / (high - low)).clamp(0.0, 1.0),
-            None => 1.0,
-        }
+        ((*activity - low) / (high - low)).clamp(0.0, 1.0)
     }
 
     /// The divisor of each bin's magnitude in a contest salience, for bins `lo..len`: the
