@@ -62,6 +62,10 @@ pub(super) struct Stream {
     /// The label's smoothed share of the fitted direct-path power (harmonic grouping's
     /// activity gate); a new label starts as talking.
     pub activity: f64,
+    /// The F0 of the label's voiced segment the activity gate is holding open (0: none).
+    pub held_f0: f64,
+    /// Smoothed fitted power per bin below the harmonic fit's top (the fit's memory).
+    pub fit_memory: Vec<f64>,
     /// This frame's known pitch from the target (oracle runs), used instead of the estimate.
     pub known_pitch: Option<VoicePitch>,
 }
@@ -95,6 +99,8 @@ impl Stream {
             constraints_changed: true,
             register: Register::default(),
             activity: 1.0,
+            held_f0: 0.0,
+            fit_memory: Vec::new(),
             known_pitch: None,
         }
     }

@@ -147,6 +147,7 @@ impl HarmonicConfig {
         in_range("register_ownership", self.register_ownership, 0.0, 10.0)?;
         unit_interval("activity", self.activity_low, self.activity_high)?;
         in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)?;
+        in_range("activity_hold", self.activity_hold, 0.0, 1.0)?;
         in_range("salience_whitening", self.salience_whitening, 0.0, 2.0)?;
         in_range(
             "whitening_bandwidth_hz",
@@ -156,6 +157,8 @@ impl HarmonicConfig {
         )?;
         in_range("fit_below_hz", self.fit_below_hz, 0.0, 8000.0)?;
         in_range("fit_min_voicing", self.fit_min_voicing, 0.0, 1.0)?;
+        in_range("fit_memory", self.fit_memory, 0.0, 0.999)?;
+        in_range("fit_memory_exponent", self.fit_memory_exponent, 0.0, 4.0)?;
         if !(self.fit_loading > 0.0 && self.fit_loading <= 1e3) {
             return Err(ConfigError::new(
                 "fit_loading",

@@ -510,3 +510,53 @@ fn of_two_labels_reading_one_f0_the_upper_harmonics_decide_whose_it_is() {
     let e = claims(raw[0], raw[1]);
     assert!(e[0] > 2.0 * e[1], "raw contest {e:?}");
 }
+
+fn voiced_pitch(f0: f64) -> Pitch {
+    Pitch {
+        f0,
+        voicing: 1.0,
+        salience: 1.0,
+        register_fit: 1.0,
+    }
+}
+
+#[test]
+fn a_voiced_segment_is_held_through_a_closed_gate_while_its_f0_glides() {
+    let h = harmonic();
+    let mut held = 0.0;
+    // The segment starts with the gate open, then the gate closes while the F0 glides by
+    // 1 % per frame: the segment stays whole.
+    assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 0.8), 0.8);
+    for f0 in [111.0, 112.1, 113.2, 114.3] {
+        assert_eq!(h.hold(&mut held, &voiced_pitch(f0), 0.0), 1.0, "{f0}");
+    }
+    // A jump of a fifth is another voice: the closed gate applies, and stays applied.
+    assert_eq!(h.hold(&mut held, &voiced_pitch(170.0), 0.0), 0.0);
+    assert_eq!(h.hold(&mut held, &voiced_pitch(170.5), 0.1), 0.1);
+    // An unvoiced frame ends a segment too.
+    assert_eq!(h.hold(&mut held, &voiced_pitch(150.0), 0.9), 0.9);
+    let unvoiced = Pitch {
+        voicing: 0.2,
+        ..voiced_pitch(150.0)
+    };
+    assert_eq!(h.hold(&mut held, &unvoiced, 0.0), 0.0);
+    assert_eq!(h.hold(&mut held, &voiced_pitch(150.0), 0.0), 0.0);
+}
+
+#[test]
+fn a_label_whose_gate_never_opened_has_nothing_to_hold() {
+    let h = harmonic();
+    let mut held = 0.0;
+    // A silent label reading a steady neighbour's pitch with its gate closed throughout.
+    for _ in 0..10 {
+        assert_eq!(h.hold(&mut held, &voiced_pitch(130.0), 0.1), 0.1);
+    }
+    // With the hold off a segment is never held.
+    let cfg = HarmonicConfig {
+        activity_hold: 0.0,
+        ..HarmonicConfig::default()
+    };
+    let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+    assert_eq!(off.hold(&mut held, &voiced_pitch(130.0), 1.0), 1.0);
+    assert_eq!(off.hold(&mut held, &voiced_pitch(130.0), 0.0), 0.0);
+}

@@ -4,6 +4,7 @@
 
 use super::Separator;
 use crate::separate::harmonic::Pitch;
+use crate::separate::stream::Stream;
 
 impl Separator {
     /// Estimates each stream's F0 from its resolved bins and regroups the unresolved ones.
@@ -67,20 +68,33 @@ impl Separator {
         w.fit_x.clear();
         w.fit_x.extend((0..top).map(|k| w.y[k * ch + rf]));
         let (harmonic, pitch) = (&self.harmonic, &w.pitch);
-        let min_voicing = self.cfg.post_filter.harmonic.fit_min_voicing;
+        let hcfg = &self.cfg.post_filter.harmonic;
+        let min_voicing = hcfg.fit_min_voicing;
+        memory_weights(
+            &self.streams,
+            top,
+            hcfg.fit_memory_exponent,
+            &mut w.fit_weight,
+        );
+        let weight = &w.fit_weight;
         let fitted = self.harmonic_fit.fit(
             &w.fit_x,
             &w.fit_f0s,
             |i, kf| {
                 // Voicing is clamped to 1 when whole; the margin keeps rounding from losing it.
                 match pitch.get(i) {
-                    Some(p) if p.voicing + 1e-9 >= min_voicing => harmonic.claim(pitch, i, kf),
+                    Some(p) if p.voicing + 1e-9 >= min_voicing => {
+                        let k = (kf.round() as usize).min(top - 1);
+                        harmonic.claim(pitch, i, kf) * weight[i * top + k]
+                    }
                     _ => 0.0,
                 }
             },
             &mut w.fit_power,
             &mut w.fit_residual,
         );
+        let power = fitted.then_some(w.fit_power.as_slice());
+        remember_fit(&mut self.streams, top, hcfg.fit_memory, power);
         if !fitted {
             return;
         }
@@ -136,7 +150,7 @@ impl Separator {
                 let mut p =
                     self.harmonic
                         .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table);
-                p.voicing *= gate;
+                p.voicing *= self.harmonic.hold(&mut s.held_f0, &p, gate);
                 p
             }
         };
@@ -149,5 +163,157 @@ impl Separator {
             &mut w.pitch_table,
         );
         p
+    }
+}
+
+/// A stream's memory at a bin counts against the strongest stream's memory there plus this
+/// fraction of it, so a stream that had nothing there keeps a small say (a tenth of the
+/// strongest's at the default exponent 0.5).
+const MEMORY_FLOOR: f64 = 0.01;
+
+/// Each stream's weight per bin below `top` (stream-major in `out`): its fit memory (the
+/// largest over the bin and its neighbours, as a harmonic drifts by a bin when its F0 moves)
+/// over the strongest stream's there, to the power `exponent`. All 1 where no stream has any.
+fn memory_weights(streams: &[Stream], top: usize, exponent: f64, out: &mut Vec<f64>) {
+    out.clear();
+    out.resize(streams.len() * top, 1.0);
+    if exponent <= 0.0 {
+        return;
+    }
+    let near = |m: &[f64], k: usize| -> f64 {
+        m.get(k.saturating_sub(1)..(k + 2).min(m.len()))
+            .map_or(0.0, |s| s.iter().copied().fold(0.0, f64::max))
+    };
+    for k in 0..top {
+        let strongest = streams
+            .iter()
+            .map(|s| near(&s.fit_memory, k))
+            .fold(0.0, f64::max);
+        if !(strongest > 0.0 && strongest.is_finite()) {
+            continue;
+        }
+        let floor = MEMORY_FLOOR * strongest;
+        for (i, s) in streams.iter().enumerate() {
+            let r = (near(&s.fit_memory, k) + floor) / (strongest + floor);
+            out[i * top + k] = r.powf(exponent);
+        }
+    }
+}
+
+/// Folds this frame's fitted power (stream-major, `top` bins each; `None`: nothing fitted)
+/// into each stream's memory with smoothing `a` per frame (0 keeps none).
+fn remember_fit(streams: &mut [Stream], top: usize, a: f64, power: Option<&[f64]>) {
+    for (i, s) in streams.iter_mut().enumerate() {
+        if a <= 0.0 {
+            s.fit_memory.clear();
+            continue;
+        }
+        s.fit_memory.resize(top, 0.0);
+        let fitted = power.and_then(|p| p.get(i * top..(i + 1) * top));
+        for (k, m) in s.fit_memory.iter_mut().enumerate() {
+            let p = fitted.map_or(0.0, |f| f[k]);
+            *m = a * *m + (1.0 - a) * if p.is_finite() { p } else { 0.0 };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dsp::{Complex, Stft};
+    use crate::geometry::Vec3;
+    use crate::label::Label;
+    use crate::separate::harmonic::HarmonicFit;
+
+    fn stream(id: u64) -> Stream {
+        Stream::new(Label::new(id, 0), Vec3::new(1.0, 0.0, 0.0), false, 1)
+    }
+
+    #[test]
+    fn memory_weighs_a_bin_by_who_had_power_there() {
+        let mut streams = vec![stream(1), stream(2)];
+        let top = 30;
+        let mut power = vec![0.0; 2 * top];
+        power[10] = 4.0; // stream 1 at bin 10
+        power[top + 20] = 1.0; // stream 2 at bin 20
+        for _ in 0..50 {
+            remember_fit(&mut streams, top, 0.9, Some(&power));
+        }
+        assert!((streams[0].fit_memory[10] - 4.0).abs() < 0.03);
+        let mut w = Vec::new();
+        memory_weights(&streams, top, 0.5, &mut w);
+        // Each keeps its own bins and the neighbours a drifting harmonic moves to.
+        for k in 9..=11 {
+            assert!((w[k] - 1.0).abs() < 1e-12, "bin {k}");
+            assert!(w[top + k] < 0.11, "bin {k}: {}", w[top + k]);
+        }
+        assert!((w[top + 20] - 1.0).abs() < 1e-12 && w[20] < 0.11);
+        // Where nobody had power, nobody is weighed down.
+        assert_eq!((w[5], w[top + 5]), (1.0, 1.0));
+        // Frames without a fit let the memory fade; no memory keeps nothing.
+        for _ in 0..50 {
+            remember_fit(&mut streams, top, 0.9, None);
+        }
+        assert!(streams[0].fit_memory[10] < 0.03);
+        remember_fit(&mut streams, top, 0.0, Some(&power));
+        assert!(streams.iter().all(|s| s.fit_memory.is_empty()));
+        memory_weights(&streams, top, 0.5, &mut w);
+        assert!(w.iter().all(|&v| v == 1.0));
+    }
+
+    #[test]
+    fn in_unison_the_voice_that_held_the_harmonics_keeps_them() {
+        // Voice A (strong low harmonics) talks alone; then voice B joins on the same F0 with
+        // weak low harmonics. The fit cannot tell their columns apart; the memory of who had
+        // the power divides it.
+        const N: usize = 1024;
+        const FS: f64 = 16_000.0;
+        let f0 = 125.0;
+        let voice = |amps: &[f64], phase: f64| -> Vec<f64> {
+            (0..N)
+                .map(|t| {
+                    amps.iter()
+                        .enumerate()
+                        .map(|(h, a)| {
+                            let w = std::f64::consts::TAU * f0 * (h + 1) as f64 / FS;
+                            a * (w * t as f64 + phase * (h + 1) as f64).cos()
+                        })
+                        .sum()
+                })
+                .collect()
+        };
+        let a = voice(&[1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4], 0.3);
+        let b = voice(&[0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1], 1.9);
+        let spectrum = |x: &[f64]| {
+            let mut out = vec![Complex::new(0.0, 0.0); N / 2 + 1];
+            Stft::new(N).forward(x, &mut out);
+            out
+        };
+        let hz = FS / N as f64;
+        let top = (1000.0 / hz) as usize;
+        let mut fit = HarmonicFit::new(N, hz, top, 1e-3);
+        let mut streams = vec![stream(1), stream(2)];
+        let (mut power, mut residual, mut w) = (Vec::new(), Vec::new(), Vec::new());
+        let mut share_of_a = |x: &[Complex], f0s: &[f64], streams: &mut Vec<Stream>| {
+            memory_weights(streams, top, 0.5, &mut w);
+            let claims = |i: usize, kf: f64| w[i * top + (kf.round() as usize).min(top - 1)];
+            assert!(fit.fit(x, f0s, claims, &mut power, &mut residual));
+            remember_fit(streams, top, 0.9, Some(&power));
+            let pa: f64 = power[..top].iter().sum();
+            pa / (pa + power[top..].iter().sum::<f64>())
+        };
+        let sa = spectrum(&a);
+        for _ in 0..20 {
+            // Alone, A's label reads its F0; B's label reads nothing.
+            assert!(share_of_a(&sa, &[f0, 0.0], &mut streams) > 0.999);
+        }
+        let mix: Vec<f64> = a.iter().zip(&b).map(|(p, q)| p + q).collect();
+        let sx = spectrum(&mix);
+        let share = share_of_a(&sx, &[f0, f0], &mut streams);
+        assert!(share > 0.9, "A's share of the unison {share:.3}");
+        // Without memory the two equal claims split the harmonics evenly.
+        let mut fresh = vec![stream(1), stream(2)];
+        let even = share_of_a(&sx, &[f0, f0], &mut fresh);
+        assert!((even - 0.5).abs() < 0.05, "{even:.3}");
     }
 }

@@ -112,6 +112,8 @@ struct Work {
     fit_x: Vec<Complex>,
     fit_power: Vec<f64>,
     fit_residual: Vec<f64>,
+    /// Per stream and bin: the weight of its memory in its claims on the fit's harmonics.
+    fit_weight: Vec<f64>,
     energy: Vec<f64>,
     present: Vec<bool>,
 }
