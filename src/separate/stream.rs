@@ -64,6 +64,8 @@ pub(super) struct Stream {
     pub activity: f64,
     /// The F0 of the label's voiced segment the activity gate is holding open (0: none).
     pub held_f0: f64,
+    /// This frame the hold kept the gate open wider than the activity alone would.
+    pub held: bool,
     /// Smoothed fitted power per bin below the harmonic fit's top (the fit's memory).
     pub fit_memory: Vec<f64>,
     /// This frame's known pitch from the target (oracle runs), used instead of the estimate.
@@ -100,6 +102,7 @@ impl Stream {
             register: Register::default(),
             activity: 1.0,
             held_f0: 0.0,
+            held: false,
             fit_memory: Vec::new(),
             known_pitch: None,
         }

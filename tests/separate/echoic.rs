@@ -240,3 +240,71 @@ fn the_harmonic_fit_separates_two_voices_the_array_cannot_resolve() {
     );
     assert!(on.si_sdr_improvement() > off.si_sdr_improvement() + 1.0);
 }
+
+/// A voice on the harmonics of `f0(t)` (Hz) from `start` (s) on, harmonic h weighted
+/// `amp(h f0)`; `phase` offsets each harmonic's phase so two voices on one F0 differ in form.
+fn harmonic_voice(
+    seconds: f64,
+    start: f64,
+    f0: impl Fn(f64) -> f64,
+    amp: impl Fn(f64) -> f64,
+    phase: f64,
+) -> Vec<f64> {
+    let n = (seconds * FS) as usize;
+    let mut cycles = 0.0;
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / FS;
+            let f = f0(t);
+            cycles += f / FS;
+            if t < start {
+                return 0.0;
+            }
+            // A 50 ms fade-in, so the onset is not a click.
+            let fade = ((t - start) / 0.05).min(1.0);
+            let mut v = 0.0;
+            let mut h = 1.0;
+            while h * f < 4000.0 {
+                v += amp(h * f) * (std::f64::consts::TAU * h * cycles + phase * h).cos();
+                h += 1.0;
+            }
+            fade * v
+        })
+        .collect()
+}
+
+/// Two talkers the 20 cm line cannot tell apart below 1 kHz, in unison: the first speaks a
+/// vowel with nothing above 1 kHz, the second joins on the same gliding F0 with a flat
+/// spectrum. The activity gate, measured above 1 kHz, closes on the first; the voiced segment
+/// it started holds it open, and the fit divides the low harmonics by what each label had in
+/// them before, so the first keeps its voice instead of losing it to the louder comb.
+#[test]
+fn a_vowel_without_upper_harmonics_keeps_its_voice_when_a_neighbour_joins_in_unison() {
+    let mics: Vec<Vec3> = (0..6)
+        .map(|i| Vec3::new(2.9 + 0.04 * f64::from(i), 0.8, 1.5))
+        .collect();
+    let centre = Vec3::new(3.0, 0.8, 1.5);
+    let at = |deg: f64| {
+        let a = f64::to_radians(deg);
+        centre + Vec3::new(1.5 * a.cos(), 1.5 * a.sin(), 0.1)
+    };
+    let seconds = 4.0;
+    let f0 = |t: f64| 120.0 * (1.0 + 0.03 * (std::f64::consts::TAU * 0.7 * t).sin());
+    let dark = harmonic_voice(seconds, 0.0, f0, |f| if f < 900.0 { 1.0 } else { 0.0 }, 0.3);
+    let bright = harmonic_voice(seconds, 1.5, f0, |_| 0.3, 1.9);
+    let signals = vec![(dark, vec![(0.0, seconds)]), (bright, vec![(1.5, seconds)])];
+    let mixture = room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, 5);
+    let targets = |_: usize, t: f64| oracle(&mixture, t);
+    let no_hold: SeparatorConfig =
+        serde_json::from_str(r#"{"post_filter": {"harmonic": {"activity_hold": 0.0}}}"#).unwrap();
+    let score = |cfg: &SeparatorConfig| {
+        let r = run(&mixture, cfg, true, targets);
+        Scores::of(&mixture, &r, 1.7)
+    };
+    let (on, off) = (score(&SeparatorConfig::default()), score(&no_hold));
+    println!("{}\n{}", on.line("hold"), off.line("no hold"));
+    let dark = |s: &Scores| s.si_sdr_out[0];
+    // Measured: dark voice +6.3 against -0.6 dB; SIR improvement +5.2 against +1.3 dB.
+    assert!(dark(&on) > dark(&off) + 4.0);
+    assert!(on.sir_improvement() > off.sir_improvement() + 2.0);
+}

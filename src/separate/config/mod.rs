@@ -296,15 +296,19 @@ pub struct HarmonicConfig {
     /// Smoothing factor per frame of each label's share.
     pub activity_smoothing: f64,
     /// A voiced segment that starts with the gate open is held open while its comb stays
-    /// voiced and its F0 moves by less than this fraction per frame; 0 turns the hold off. A
-    /// vowel with little energy above 1 kHz closes the gate (its talker's share of the
-    /// direct-path power there is small) though the talker goes on, and a neighbour in unison
-    /// then takes the low harmonics. 0.04 (default) against 0, full pipeline, SI-SDRi (dB) /
-    /// streams per talker: paper-linear6 seeds 1-12 +7.40 / 1.11 against +7.17 / 1.11, uca8
-    /// three talkers seeds 1-6 +8.96 against +8.50; recorded speech, whose combs seldom stay
-    /// voiced and smooth with the gate closed, on paper-linear6 seeds 1-12 +5.18 / 1.19 against
-    /// +5.24 / 1.22 (per-scene differences -0.31 to +0.26 dB), uca8 seeds 1-6 +5.84 against
-    /// +5.86. 0.02 and 0.08 measured within 0.02 dB of 0.04.
+    /// voiced and its F0 moves by less than this fraction per frame, and while held the label
+    /// claims a low harmonic in the amplitude fit by its memory of it when that says more than
+    /// the contest; 0 turns the hold off. A vowel with little energy above 1 kHz closes the
+    /// gate (its talker's share of the direct-path power there is small) though the talker
+    /// goes on, and a neighbour in unison, whose comb wins the contest in the upper bins, then
+    /// takes the low harmonics. 0.04 (default) against 0, full pipeline, SI-SDRi (dB) / streams
+    /// per talker: paper-linear6 seeds 1-12 +7.41 / 1.08 against +7.17 / 1.11, uca8 three
+    /// talkers seeds 1-6 +8.95 against +8.50; recorded speech, whose combs seldom stay voiced
+    /// with the gate closed (and, when they do, more often on a silent label than a talking
+    /// one), on paper-linear6 seeds 1-12 +5.12 / 1.22 against +5.24 / 1.22 (per-scene changes
+    /// of -0.3 to +0.3 dB either way), uca8 seeds 1-6 +5.82 against +5.86. Without the claim
+    /// by memory: +7.39 / 1.11, +8.93, +5.18 and +5.84; 0.02 and 0.08 measured within 0.02 dB
+    /// of 0.04.
     pub activity_hold: f64,
     /// How far a comb's salience in the labels' contest for a harmonic is measured against the
     /// mixture's local level: each harmonic's peak-minus-valley magnitude is divided by the

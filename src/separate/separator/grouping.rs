@@ -77,6 +77,9 @@ impl Separator {
             &mut w.fit_weight,
         );
         let weight = &w.fit_weight;
+        w.fit_held.clear();
+        w.fit_held.extend(self.streams.iter().map(|s| s.held));
+        let held = &w.fit_held;
         let fitted = self.harmonic_fit.fit(
             &w.fit_x,
             &w.fit_f0s,
@@ -85,7 +88,15 @@ impl Separator {
                 match pitch.get(i) {
                     Some(p) if p.voicing + 1e-9 >= min_voicing => {
                         let k = (kf.round() as usize).min(top - 1);
-                        harmonic.claim(pitch, i, kf) * weight[i * top + k]
+                        let (w, claim) = (weight[i * top + k], harmonic.claim(pitch, i, kf));
+                        // A held label's contest reads bins its vowel left empty; its memory
+                        // of the harmonic says more.
+                        let claim = if held[i] {
+                            claim.max(p.voicing * w)
+                        } else {
+                            claim
+                        };
+                        claim * w
                     }
                     _ => 0.0,
                 }
@@ -119,6 +130,7 @@ impl Separator {
     fn stream_pitch(&mut self, i: usize, to_ref: bool, top: usize) -> Pitch {
         let n = self.streams.len();
         let (ch, rf) = (self.channels, self.reference);
+        self.streams[i].held = false;
         let w = &mut self.work;
         if w.priors[i] <= 0.0 {
             return Pitch::default();
@@ -150,7 +162,9 @@ impl Separator {
                 let mut p =
                     self.harmonic
                         .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table);
-                p.voicing *= self.harmonic.hold(&mut s.held_f0, &p, gate);
+                let held = self.harmonic.hold(&mut s.held_f0, &p, gate);
+                s.held = held > gate;
+                p.voicing *= held;
                 p
             }
         };
