@@ -2,7 +2,7 @@
 
 use super::blocking::BlockingBank;
 use super::config::BeamformerKind;
-use super::harmonic::Register;
+use super::harmonic::{Register, Segment};
 use super::lifecycle::Envelope;
 use super::null_steering::NullSteering;
 use super::postfilter::PostState;
@@ -62,8 +62,8 @@ pub(super) struct Stream {
     /// The label's smoothed share of the fitted direct-path power (harmonic grouping's
     /// activity gate); a new label starts as talking.
     pub activity: f64,
-    /// The F0 of the label's voiced segment the activity gate is holding open (0: none).
-    pub held_f0: f64,
+    /// The label's voiced segment, as the activity hold follows it.
+    pub segment: Segment,
     /// This frame the hold kept the gate open wider than the activity alone would.
     pub held: bool,
     /// Smoothed fitted power per bin below the harmonic fit's top (the fit's memory).
@@ -101,7 +101,7 @@ impl Stream {
             constraints_changed: true,
             register: Register::default(),
             activity: 1.0,
-            held_f0: 0.0,
+            segment: Segment::default(),
             held: false,
             fit_memory: Vec::new(),
             known_pitch: None,

@@ -273,10 +273,10 @@ fn harmonic_voice(
         .collect()
 }
 
-/// Two talkers the 20 cm line cannot tell apart below 1 kHz, in unison: the first speaks a
-/// vowel with nothing above 1 kHz, the second joins on the same gliding F0 with a flat
-/// spectrum. The activity gate, measured above 1 kHz, closes on the first; the voiced segment
-/// it started holds it open, and the fit divides the low harmonics by what each label had in
+/// Two talkers the 20 cm line cannot tell apart below 1 kHz, in unison: the first holds a
+/// vowel 20 dB weaker above 1 kHz than below, the second joins on the same gliding F0 with a
+/// flat spectrum. The activity gate, measured above 1 kHz, closes on the first; the voiced
+/// segment it started while alone holds it open, and the fit divides the low harmonics by what each label had in
 /// them before, so the first keeps its voice instead of losing it to the louder comb.
 #[test]
 fn a_vowel_without_upper_harmonics_keeps_its_voice_when_a_neighbour_joins_in_unison() {
@@ -288,23 +288,32 @@ fn a_vowel_without_upper_harmonics_keeps_its_voice_when_a_neighbour_joins_in_uni
         let a = f64::to_radians(deg);
         centre + Vec3::new(1.5 * a.cos(), 1.5 * a.sin(), 0.1)
     };
-    let seconds = 4.0;
+    // One long vowel: 1.5 s alone, then 0.45 s in unison.
+    let (seconds, joins) = (1.95, 1.5);
     let f0 = |t: f64| 120.0 * (1.0 + 0.03 * (std::f64::consts::TAU * 0.7 * t).sin());
-    let dark = harmonic_voice(seconds, 0.0, f0, |f| if f < 900.0 { 1.0 } else { 0.0 }, 0.3);
-    let bright = harmonic_voice(seconds, 1.5, f0, |_| 0.3, 1.9);
-    let signals = vec![(dark, vec![(0.0, seconds)]), (bright, vec![(1.5, seconds)])];
+    let dark = harmonic_voice(seconds, 0.0, f0, |f| if f < 900.0 { 1.0 } else { 0.1 }, 0.3);
+    let bright = harmonic_voice(seconds, joins, f0, |_| 0.3, 1.9);
+    let signals = vec![
+        (dark, vec![(0.0, seconds)]),
+        (bright, vec![(joins, seconds)]),
+    ];
     let mixture = room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, 5);
     let targets = |_: usize, t: f64| oracle(&mixture, t);
     let no_hold: SeparatorConfig =
         serde_json::from_str(r#"{"post_filter": {"harmonic": {"activity_hold": 0.0}}}"#).unwrap();
     let score = |cfg: &SeparatorConfig| {
         let r = run(&mixture, cfg, true, targets);
-        Scores::of(&mixture, &r, 1.7)
+        Scores::of(&mixture, &r, joins + 0.05)
     };
     let (on, off) = (score(&SeparatorConfig::default()), score(&no_hold));
     println!("{}\n{}", on.line("hold"), off.line("no hold"));
     let dark = |s: &Scores| s.si_sdr_out[0];
-    // Measured: dark voice +6.3 against -0.6 dB; SIR improvement +5.2 against +1.3 dB.
-    assert!(dark(&on) > dark(&off) + 4.0);
-    assert!(on.sir_improvement() > off.sir_improvement() + 2.0);
+    println!(
+        "dark voice SI-SDR {:.2} against {:.2}",
+        dark(&on),
+        dark(&off)
+    );
+    // Measured: dark voice +4.6 against +1.2 dB; SIR improvement +3.2 against +1.7 dB.
+    assert!(dark(&on) > dark(&off) + 2.0);
+    assert!(on.sir_improvement() > off.sir_improvement() + 1.0);
 }

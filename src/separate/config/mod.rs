@@ -310,6 +310,10 @@ pub struct HarmonicConfig {
     /// by memory: +7.39 / 1.11, +8.93, +5.18 and +5.84; 0.02 and 0.08 measured within 0.02 dB
     /// of 0.04.
     pub activity_hold: f64,
+    /// Longest a voiced segment is held with the gate closed (s): a long vowel. Without a
+    /// bound a label that stopped, reading a neighbour who holds one note, would be held for as
+    /// long as the note lasts.
+    pub activity_hold_max_s: f64,
     /// How far a comb's salience in the labels' contest for a harmonic is measured against the
     /// mixture's local level: each harmonic's peak-minus-valley magnitude is divided by the
     /// reference microphone's RMS magnitude over `whitening_bandwidth_hz` to this power (the F0
@@ -384,6 +388,7 @@ impl Default for HarmonicConfig {
             activity_high: 0.2,
             activity_smoothing: 0.5,
             activity_hold: 0.04,
+            activity_hold_max_s: 0.5,
             salience_whitening: 0.5,
             whitening_bandwidth_hz: 250.0,
             fit_below_hz: 1000.0,

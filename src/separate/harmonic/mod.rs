@@ -24,9 +24,11 @@ use super::config::HarmonicConfig;
 use crate::dsp::{Complex, VoicePitch};
 use comb::{COARSE, Comb, REFINED, Score, hann_power};
 
+mod activity;
 mod comb;
 mod fit;
 
+pub use activity::Segment;
 pub use fit::{HarmonicFit, hann_transform};
 
 /// Relative step of the F0 candidate grid (0.5 %: the 20th harmonic moves by a tenth of its
@@ -112,6 +114,11 @@ pub struct Harmonic {
     activity_smoothing: f64,
     /// Largest |ln| change of F0 per frame that continues a held voiced segment (0: no hold).
     hold_log_step: f64,
+    /// Frames a segment may be held with the gate closed.
+    hold_max_frames: usize,
+    /// Frames after a label's birth before its gate is its own measurement: the smoothed
+    /// share starts at 1 and has forgotten 90 % of that after this many.
+    hold_start_frames: usize,
     /// Power of the mixture's local level that divides a contest salience (0: raw magnitudes).
     salience_whitening: f64,
     /// Half-width (bins) of the band the local level is measured over.
@@ -150,6 +157,12 @@ impl Harmonic {
                 .then_some((cfg.activity_low, cfg.activity_high)),
             activity_smoothing: cfg.activity_smoothing,
             hold_log_step: cfg.activity_hold.ln_1p(),
+            hold_max_frames: (cfg.activity_hold_max_s * frames_per_s).round() as usize,
+            hold_start_frames: if cfg.activity_smoothing > 0.0 {
+                (0.1f64.ln() / cfg.activity_smoothing.ln()).ceil() as usize
+            } else {
+                0
+            },
             salience_whitening: cfg.salience_whitening,
             whitening_half_width: (0.5 * cfg.whitening_bandwidth_hz / hz_per_bin.max(1e-12))
                 .round()
@@ -211,41 +224,6 @@ impl Harmonic {
     /// is its activity gate).
     pub fn gates_activity(&self) -> bool {
         self.enabled() && self.activity.is_some()
-    }
-
-    /// Folds this frame's direct-power `share` of a label into its smoothed `activity` and
-    /// returns the factor, in [0, 1], its estimated voicing is scaled by (1 with the gate off).
-    pub fn activity_gate(&self, activity: &mut f64, share: f64) -> f64 {
-        let Some((low, high)) = self.activity else {
-            return 1.0;
-        };
-        if share.is_finite() {
-            let a = self.activity_smoothing;
-            *activity = a * *activity + (1.0 - a) * share.clamp(0.0, 1.0);
-        }
-        ((*activity - low) / (high - low)).clamp(0.0, 1.0)
-    }
-
-    /// The gate that applies to this frame's estimated `pitch` given the activity gate's
-    /// value `gate`, keeping `held_f0` (the F0 of the label's held voiced segment, 0 for none).
-    /// A voiced segment starts where the gate is open and is held open while the comb stays
-    /// voiced (voicing at least 0.5) and its F0 moves by less than `activity_hold` per frame:
-    /// one glottal source's harmonics do not change owner in mid-segment, and a vowel with
-    /// little energy above 1 kHz, where the gate measures, closes the gate though its talker
-    /// goes on speaking. A silent label reading a neighbour's voice has no open start to hold.
-    pub fn hold(&self, held_f0: &mut f64, pitch: &Pitch, gate: f64) -> f64 {
-        let voiced = pitch.voicing >= 0.5 && pitch.f0 > 0.0;
-        if self.hold_log_step <= 0.0 || !voiced {
-            *held_f0 = 0.0;
-            return gate;
-        }
-        let continues = *held_f0 > 0.0 && (pitch.f0 / *held_f0).ln().abs() < self.hold_log_step;
-        if continues || gate >= 0.5 {
-            *held_f0 = pitch.f0;
-        } else {
-            *held_f0 = 0.0;
-        }
-        if continues { 1.0 } else { gate }
     }
 
     /// The divisor of each bin's magnitude in a contest salience, for bins `lo..len`: the

@@ -511,6 +511,13 @@ fn of_two_labels_reading_one_f0_the_upper_harmonics_decide_whose_it_is() {
     assert!(e[0] > 2.0 * e[1], "raw contest {e:?}");
 }
 
+/// Past a new label's first frames, whose open gate is a presumption.
+fn measured(h: &Harmonic, segment: &mut Segment) {
+    for _ in 0..10 {
+        h.hold(segment, &Pitch::default(), 0.0);
+    }
+}
+
 fn voiced_pitch(f0: f64) -> Pitch {
     Pitch {
         f0,
@@ -523,7 +530,8 @@ fn voiced_pitch(f0: f64) -> Pitch {
 #[test]
 fn a_voiced_segment_is_held_through_a_closed_gate_while_its_f0_glides() {
     let h = harmonic();
-    let mut held = 0.0;
+    let mut held = Segment::default();
+    measured(&h, &mut held);
     // The segment starts with the gate open, then the gate closes while the F0 glides by
     // 1 % per frame: the segment stays whole.
     assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 0.8), 0.8);
@@ -546,7 +554,7 @@ fn a_voiced_segment_is_held_through_a_closed_gate_while_its_f0_glides() {
 #[test]
 fn a_label_whose_gate_never_opened_has_nothing_to_hold() {
     let h = harmonic();
-    let mut held = 0.0;
+    let mut held = Segment::default();
     // A silent label reading a steady neighbour's pitch with its gate closed throughout.
     for _ in 0..10 {
         assert_eq!(h.hold(&mut held, &voiced_pitch(130.0), 0.1), 0.1);
@@ -559,4 +567,33 @@ fn a_label_whose_gate_never_opened_has_nothing_to_hold() {
     let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
     assert_eq!(off.hold(&mut held, &voiced_pitch(130.0), 1.0), 1.0);
     assert_eq!(off.hold(&mut held, &voiced_pitch(130.0), 0.0), 0.0);
+}
+
+#[test]
+fn a_held_note_is_held_no_longer_than_a_long_vowel() {
+    // 31.25 frames per second: 0.5 s is 16 frames.
+    let h = harmonic();
+    let mut held = Segment::default();
+    measured(&h, &mut held);
+    assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 1.0), 1.0);
+    let gates: Vec<f64> = (0..20)
+        .map(|_| h.hold(&mut held, &voiced_pitch(110.0), 0.0))
+        .collect();
+    assert!(gates[..16].iter().all(|&g| g == 1.0), "{gates:?}");
+    assert!(gates[16..].iter().all(|&g| g == 0.0), "{gates:?}");
+    // The gate opening again starts a new segment, with a new allowance.
+    assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 0.7), 0.7);
+    assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 0.0), 1.0);
+}
+
+#[test]
+fn a_newborn_labels_presumed_open_gate_starts_no_segment() {
+    // The gate starts open on the presumption of talk; the label reads a neighbour's note.
+    let h = harmonic();
+    let mut held = Segment::default();
+    let gates: Vec<f64> = [1.0, 0.8, 0.3, 0.0, 0.0, 0.0]
+        .iter()
+        .map(|&g| h.hold(&mut held, &voiced_pitch(110.0), g))
+        .collect();
+    assert_eq!(gates, vec![1.0, 0.8, 0.3, 0.0, 0.0, 0.0]);
 }

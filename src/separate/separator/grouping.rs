@@ -162,7 +162,7 @@ impl Separator {
                 let mut p =
                     self.harmonic
                         .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table);
-                let held = self.harmonic.hold(&mut s.held_f0, &p, gate);
+                let held = self.harmonic.hold(&mut s.segment, &p, gate);
                 s.held = held > gate;
                 p.voicing *= held;
                 p
