@@ -3,7 +3,7 @@
 use avsep::geometry::Vec3;
 use avsep::separate::SeparatorConfig;
 
-use crate::fixtures::{FS, Mixture, oracle, room_mixture, run, uca};
+use crate::fixtures::{FS, Mixture, Signal, oracle, room_mixture, run, uca};
 use crate::scores::Scores;
 use crate::sim;
 
@@ -205,12 +205,9 @@ fn survey() {
     }
 }
 
-/// Two talkers 25 degrees apart, 1.5 m from a 6-microphone line 20 cm long, in a room with
-/// RT60 0.3 s: below 1 kHz the array cannot tell them apart, and there the harmonic amplitude
-/// fit divides each bin by the power each voice has in it rather than handing it whole to the
-/// stronger comb.
-#[test]
-fn the_harmonic_fit_separates_two_voices_the_array_cannot_resolve() {
+/// Two talkers 25 degrees apart (at 75 and 100 degrees), 1.5 m from a 6-microphone line 20 cm
+/// long, in a room with RT60 0.3 s and 30 dB SNR: below 1 kHz the array cannot tell them apart.
+fn unresolved_pair(signals: Vec<Signal>, seed: u64) -> Mixture {
     let mics: Vec<Vec3> = (0..6)
         .map(|i| Vec3::new(2.9 + 0.04 * f64::from(i), 0.8, 1.5))
         .collect();
@@ -219,11 +216,19 @@ fn the_harmonic_fit_separates_two_voices_the_array_cannot_resolve() {
         let a = f64::to_radians(deg);
         centre + Vec3::new(1.5 * a.cos(), 1.5 * a.sin(), 0.1)
     };
+    room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, seed)
+}
+
+/// Two talkers the 20 cm line cannot resolve (`unresolved_pair`): below 1 kHz the array cannot tell them apart, and there the harmonic amplitude
+/// fit divides each bin by the power each voice has in it rather than handing it whole to the
+/// stronger comb.
+#[test]
+fn the_harmonic_fit_separates_two_voices_the_array_cannot_resolve() {
     let signals = vec![
         sim::speech(6.0, FS, 120.0, 11),
         sim::speech(6.0, FS, 205.0, 12),
     ];
-    let mixture = room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, 9);
+    let mixture = unresolved_pair(signals, 9);
     let targets = |_: usize, t: f64| oracle(&mixture, t);
     let fit_off: SeparatorConfig =
         serde_json::from_str(r#"{"post_filter": {"harmonic": {"fit_below_hz": 0.0}}}"#).unwrap();
@@ -276,18 +281,11 @@ fn harmonic_voice(
 /// Two talkers the 20 cm line cannot tell apart below 1 kHz, in unison: the first holds a
 /// vowel 20 dB weaker above 1 kHz than below, the second joins on the same gliding F0 with a
 /// flat spectrum. The activity gate, measured above 1 kHz, closes on the first; the voiced
-/// segment it started while alone holds it open, and the fit divides the low harmonics by what each label had in
-/// them before, so the first keeps its voice instead of losing it to the louder comb.
+/// segment it started while alone holds it open, and the fit divides the low harmonics by what
+/// each label had in them before, so the first keeps its voice instead of losing it to the
+/// louder comb.
 #[test]
 fn a_vowel_without_upper_harmonics_keeps_its_voice_when_a_neighbour_joins_in_unison() {
-    let mics: Vec<Vec3> = (0..6)
-        .map(|i| Vec3::new(2.9 + 0.04 * f64::from(i), 0.8, 1.5))
-        .collect();
-    let centre = Vec3::new(3.0, 0.8, 1.5);
-    let at = |deg: f64| {
-        let a = f64::to_radians(deg);
-        centre + Vec3::new(1.5 * a.cos(), 1.5 * a.sin(), 0.1)
-    };
     // One long vowel: 1.5 s alone, then 0.45 s in unison.
     let (seconds, joins) = (1.95, 1.5);
     let f0 = |t: f64| 120.0 * (1.0 + 0.03 * (std::f64::consts::TAU * 0.7 * t).sin());
@@ -297,7 +295,7 @@ fn a_vowel_without_upper_harmonics_keeps_its_voice_when_a_neighbour_joins_in_uni
         (dark, vec![(0.0, seconds)]),
         (bright, vec![(joins, seconds)]),
     ];
-    let mixture = room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, 5);
+    let mixture = unresolved_pair(signals, 5);
     let targets = |_: usize, t: f64| oracle(&mixture, t);
     let no_hold: SeparatorConfig =
         serde_json::from_str(r#"{"post_filter": {"harmonic": {"activity_hold": 0.0}}}"#).unwrap();

@@ -211,20 +211,24 @@ fn dirichlet(d: f64, n: usize) -> Complex {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::dsp::Stft;
 
-    const N: usize = 1024;
-    const FS: f64 = 16_000.0;
+    /// Frame length and sample rate of the test signals.
+    pub const N: usize = 1024;
+    pub const FS: f64 = 16_000.0;
 
-    fn spectrum(x: &[f64]) -> Vec<Complex> {
+    /// The STFT bins of one `N`-sample frame.
+    pub fn spectrum(x: &[f64]) -> Vec<Complex> {
         let mut out = vec![Complex::new(0.0, 0.0); N / 2 + 1];
         Stft::new(N).forward(x, &mut out);
         out
     }
 
-    fn voice(f0: f64, amps: &[f64], phase: f64) -> Vec<f64> {
+    /// One frame of a steady voice on `f0` with harmonic h + 1 of amplitude `amps[h]` and
+    /// phase `phase` (h + 1).
+    pub fn voice(f0: f64, amps: &[f64], phase: f64) -> Vec<f64> {
         (0..N)
             .map(|t| {
                 amps.iter()

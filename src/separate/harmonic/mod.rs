@@ -29,6 +29,8 @@ mod comb;
 mod fit;
 
 pub use activity::Segment;
+#[cfg(test)]
+pub(crate) use fit::tests as fit_signals;
 pub use fit::{HarmonicFit, hann_transform};
 
 /// Relative step of the F0 candidate grid (0.5 %: the 20th harmonic moves by a tenth of its

@@ -511,11 +511,13 @@ fn of_two_labels_reading_one_f0_the_upper_harmonics_decide_whose_it_is() {
     assert!(e[0] > 2.0 * e[1], "raw contest {e:?}");
 }
 
-/// Past a new label's first frames, whose open gate is a presumption.
-fn measured(h: &Harmonic, segment: &mut Segment) {
+/// A label's segment past its first frames, whose open gate is a presumption.
+fn measured(h: &Harmonic) -> Segment {
+    let mut segment = Segment::default();
     for _ in 0..10 {
-        h.hold(segment, &Pitch::default(), 0.0);
+        h.hold(&mut segment, &Pitch::default(), 0.0);
     }
+    segment
 }
 
 fn voiced_pitch(f0: f64) -> Pitch {
@@ -530,8 +532,7 @@ fn voiced_pitch(f0: f64) -> Pitch {
 #[test]
 fn a_voiced_segment_is_held_through_a_closed_gate_while_its_f0_glides() {
     let h = harmonic();
-    let mut held = Segment::default();
-    measured(&h, &mut held);
+    let mut held = measured(&h);
     // The segment starts with the gate open, then the gate closes while the F0 glides by
     // 1 % per frame: the segment stays whole.
     assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 0.8), 0.8);
@@ -573,8 +574,7 @@ fn a_label_whose_gate_never_opened_has_nothing_to_hold() {
 fn a_held_note_is_held_no_longer_than_a_long_vowel() {
     // 31.25 frames per second: 0.5 s is 16 frames.
     let h = harmonic();
-    let mut held = Segment::default();
-    measured(&h, &mut held);
+    let mut held = measured(&h);
     assert_eq!(h.hold(&mut held, &voiced_pitch(110.0), 1.0), 1.0);
     let gates: Vec<f64> = (0..20)
         .map(|_| h.hold(&mut held, &voiced_pitch(110.0), 0.0))

@@ -76,10 +76,7 @@ impl Separator {
             hcfg.fit_memory_exponent,
             &mut w.fit_weight,
         );
-        let weight = &w.fit_weight;
-        w.fit_held.clear();
-        w.fit_held.extend(self.streams.iter().map(|s| s.held));
-        let held = &w.fit_held;
+        let (weight, streams) = (&w.fit_weight, &self.streams);
         let fitted = self.harmonic_fit.fit(
             &w.fit_x,
             &w.fit_f0s,
@@ -91,7 +88,7 @@ impl Separator {
                         let (w, claim) = (weight[i * top + k], harmonic.claim(pitch, i, kf));
                         // A held label's contest reads bins its vowel left empty; its memory
                         // of the harmonic says more.
-                        let claim = if held[i] {
+                        let claim = if streams[i].held {
                             claim.max(p.voicing * w)
                         } else {
                             claim
@@ -234,10 +231,11 @@ fn remember_fit(streams: &mut [Stream], top: usize, a: f64, power: Option<&[f64]
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dsp::{Complex, Stft};
+    use crate::dsp::Complex;
     use crate::geometry::Vec3;
     use crate::label::Label;
     use crate::separate::harmonic::HarmonicFit;
+    use crate::separate::harmonic::fit_signals::{FS, N, spectrum, voice};
 
     fn stream(id: u64) -> Stream {
         Stream::new(Label::new(id, 0), Vec3::new(1.0, 0.0, 0.0), false, 1)
@@ -280,29 +278,9 @@ mod tests {
         // Voice A (strong low harmonics) talks alone; then voice B joins on the same F0 with
         // weak low harmonics. The fit cannot tell their columns apart; the memory of who had
         // the power divides it.
-        const N: usize = 1024;
-        const FS: f64 = 16_000.0;
         let f0 = 125.0;
-        let voice = |amps: &[f64], phase: f64| -> Vec<f64> {
-            (0..N)
-                .map(|t| {
-                    amps.iter()
-                        .enumerate()
-                        .map(|(h, a)| {
-                            let w = std::f64::consts::TAU * f0 * (h + 1) as f64 / FS;
-                            a * (w * t as f64 + phase * (h + 1) as f64).cos()
-                        })
-                        .sum()
-                })
-                .collect()
-        };
-        let a = voice(&[1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4], 0.3);
-        let b = voice(&[0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1], 1.9);
-        let spectrum = |x: &[f64]| {
-            let mut out = vec![Complex::new(0.0, 0.0); N / 2 + 1];
-            Stft::new(N).forward(x, &mut out);
-            out
-        };
+        let a = voice(f0, &[1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4], 0.3);
+        let b = voice(f0, &[0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1], 1.9);
         let hz = FS / N as f64;
         let top = (1000.0 / hz) as usize;
         let mut fit = HarmonicFit::new(N, hz, top, 1e-3);

@@ -114,8 +114,6 @@ struct Work {
     fit_residual: Vec<f64>,
     /// Per stream and bin: the weight of its memory in its claims on the fit's harmonics.
     fit_weight: Vec<f64>,
-    /// Per stream: its voiced segment is being held open this frame.
-    fit_held: Vec<bool>,
     energy: Vec<f64>,
     present: Vec<bool>,
 }
