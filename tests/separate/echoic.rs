@@ -219,9 +219,9 @@ fn unresolved_pair(signals: Vec<Signal>, seed: u64) -> Mixture {
     room_mixture(mics, vec![at(75.0), at(100.0)], signals, 0.3, 30.0, seed)
 }
 
-/// Two talkers the 20 cm line cannot resolve (`unresolved_pair`): below 1 kHz the array cannot tell them apart, and there the harmonic amplitude
-/// fit divides each bin by the power each voice has in it rather than handing it whole to the
-/// stronger comb.
+/// Two talkers the 20 cm line cannot resolve below 1 kHz (`unresolved_pair`): there the
+/// harmonic amplitude fit divides each bin by the power each voice has in it rather than
+/// handing it whole to the stronger comb.
 #[test]
 fn the_harmonic_fit_separates_two_voices_the_array_cannot_resolve() {
     let signals = vec![
