@@ -447,6 +447,12 @@ impl Default for LifecycleConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct SeparatorConfig {
     /// STFT frame (window and FFT) length in samples (1024 at 16 kHz; the paper uses 2048).
+    /// 2048 with hop 512 resolves harmonics twice as finely and scores more on the simulator's
+    /// voices but splits more talkers and loses on recorded speech, at 1.5 times the
+    /// pipeline's CPU. Full pipeline, SI-SDRi (dB) / streams per talker, 2048 against 1024:
+    /// paper-linear6 seeds 1-12 +8.32 / 1.25 against +7.41 / 1.08, uca8 three talkers seeds
+    /// 1-6 +9.56 against +8.95; recorded speech on paper-linear6 +4.83 against +5.11, on
+    /// uca8 +5.96 against +5.82; a whole uca8 scene 0.041 against 0.028 of real time.
     pub frame: usize,
     /// STFT hop in samples (512; the paper uses 1024).
     pub hop: usize,
