@@ -97,6 +97,13 @@ impl Yin {
     pub fn track(&self, x: &[f32], hop: usize) -> Vec<VoicePitch> {
         let hop = hop.max(1);
         let count = x.len().div_ceil(hop) + 1;
+        let centres: Vec<usize> = (0..count).map(|j| j * hop).collect();
+        self.track_at(x, &centres)
+    }
+
+    /// The pitch of `x` in the frames centred on the samples `centres`, frames far below the
+    /// loudest of them unvoiced.
+    pub fn track_at(&self, x: &[f32], centres: &[usize]) -> Vec<VoicePitch> {
         let half = self.frame / 2;
         let energy = |centre: usize| -> f64 {
             let lo = centre.saturating_sub(half);
@@ -104,16 +111,16 @@ impl Yin {
             x.get(lo..hi)
                 .map_or(0.0, |s| s.iter().map(|&v| f64::from(v).powi(2)).sum())
         };
-        let energies: Vec<f64> = (0..count).map(|j| energy(j * hop)).collect();
+        let energies: Vec<f64> = centres.iter().map(|&c| energy(c)).collect();
         let loudest = energies.iter().copied().fold(0.0, f64::max);
         energies
             .iter()
-            .enumerate()
-            .map(|(j, &e)| {
+            .zip(centres)
+            .map(|(&e, &centre)| {
                 if !(loudest > 0.0 && e > SILENCE_BELOW_MAX * loudest) {
                     return VoicePitch::default();
                 }
-                let (f0, aperiodicity) = self.analyse(x, j * hop);
+                let (f0, aperiodicity) = self.analyse(x, centre);
                 let voicing = ((UNVOICED_ABOVE - aperiodicity) / (UNVOICED_ABOVE - VOICED_BELOW))
                     .clamp(0.0, 1.0);
                 VoicePitch { f0, voicing }

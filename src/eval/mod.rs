@@ -15,6 +15,7 @@ mod config;
 pub mod identity;
 pub mod measurements;
 pub mod ospa;
+pub mod pitch;
 pub mod plots;
 pub mod sample_set;
 pub mod si_sdr;
@@ -34,6 +35,7 @@ pub use stats::Summary;
 
 use audio::{AudioInputs, AudioReport, score_audio};
 use measurements::{MeasurementsReport, score_measurements};
+use pitch::{PitchReport, score_pitch};
 use tracks::{TracksReport, score_tracks};
 
 /// Why an evaluation could not be made.
@@ -89,6 +91,10 @@ pub struct EvalReport {
     pub tracks: Option<TracksReport>,
     /// Separation scores (`audio/`).
     pub audio: Option<AudioReport>,
+    /// The separator's pitch against each source's (`pitch.jsonl`, scored for the sources the
+    /// separation section mapped to a label).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pitch: Option<PitchReport>,
     /// Why a section is missing, and other remarks.
     pub notes: Vec<String>,
 }
@@ -143,6 +149,23 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
         };
         Some(score_audio(&inputs, cfg)?)
     };
+    let pitch = match (&out.pitch, &audio) {
+        (None, _) => None,
+        (Some(_), None) => {
+            notes.push("pitch.jsonl without scored streams: pitch not scored".to_string());
+            None
+        }
+        (Some(lines), Some(a)) => {
+            let sources: Vec<_> = truth
+                .sources
+                .iter()
+                .filter(|s| s.signal.is_some())
+                .collect();
+            let labels: Vec<_> = a.sources.iter().map(|s| s.label).collect();
+            let fs = f64::from(scene.layout.sample_rate);
+            Some(score_pitch(lines, &sources, &labels, fs, cfg))
+        }
+    };
     Ok(EvalReport {
         scene: scene.dir.display().to_string(),
         output: out.dir.display().to_string(),
@@ -152,6 +175,7 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
         measurements,
         tracks,
         audio,
+        pitch,
         notes,
     })
 }

@@ -6,6 +6,7 @@ use super::EvalReport;
 use super::audio::AudioReport;
 use super::bss_eval::BssFigures;
 use super::measurements::MeasurementsReport;
+use super::pitch::{PitchFigures, PitchReport};
 use super::stats::Summary;
 use super::tracks::{MotFigures, TrackingFigures, TracksReport};
 
@@ -292,6 +293,45 @@ fn audio(out: &mut String, a: &AudioReport) -> fmt::Result {
     )
 }
 
+fn pitch_row(
+    out: &mut String,
+    id: &str,
+    label: &str,
+    frames: &str,
+    f: &PitchFigures,
+) -> fmt::Result {
+    writeln!(
+        out,
+        "  {:<10} {:>7} {:>13} {:>8} {:>8} {:>8} {:>8}",
+        id,
+        label,
+        frames,
+        pct(f.voiced_recall),
+        pct(f.false_voicing),
+        pct(f.f0_within_tolerance),
+        pct(f.gross_error)
+    )
+}
+
+fn pitch(out: &mut String, p: &PitchReport) -> fmt::Result {
+    writeln!(
+        out,
+        "Separator pitch (against YIN on each source; F0 right within {:.0}%, gross over {:.0}%)",
+        100.0 * p.tolerance,
+        100.0 * super::pitch::GROSS_ERROR
+    )?;
+    writeln!(
+        out,
+        "  {:<10} {:>7} {:>13} {:>8} {:>8} {:>8} {:>8}",
+        "source", "label", "voiced/frames", "recall", "false", "F0 ok", "gross"
+    )?;
+    for s in &p.sources {
+        let frames = format!("{}/{}", s.voiced_frames, s.frames);
+        pitch_row(out, &s.id, &s.label.to_string(), &frames, &s.figures)?;
+    }
+    pitch_row(out, "mean", "", "", &p.mean)
+}
+
 impl Display for EvalReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let mut out = String::new();
@@ -311,6 +351,10 @@ impl Display for EvalReport {
         if let Some(a) = &self.audio {
             writeln!(out)?;
             audio(&mut out, a)?;
+        }
+        if let Some(p) = &self.pitch {
+            writeln!(out)?;
+            pitch(&mut out, p)?;
         }
         if !self.notes.is_empty() {
             writeln!(out)?;

@@ -1,7 +1,7 @@
 //! What a pipeline emits: measurements, track estimates, separated audio and events.
 
 use crate::label::Label;
-use crate::scene::format::{AudioMeasurementLine, TracksLine};
+use crate::scene::format::{AudioMeasurementLine, LabelPitch, TracksLine};
 
 /// Where a pipeline hands its events, one by one as they are produced (a step's tracks before
 /// its separated audio, so a live session can send them before the separation runs).
@@ -27,6 +27,14 @@ pub enum PipelineEvent {
         first_sample: u64,
         /// Mono samples.
         samples: Vec<f32>,
+    },
+    /// Each label's pitch as the separator's harmonic grouping read it in one STFT frame (only
+    /// when the pipeline records it, see [`crate::pipeline::Pipeline::record_pitch`]).
+    Pitch {
+        /// Input sample index of the frame's centre.
+        centre_sample: u64,
+        /// One entry per label with a stream.
+        labels: Vec<LabelPitch>,
     },
     /// A label appeared for the first time.
     TrackBorn {

@@ -8,6 +8,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::label::Label;
+use crate::scene::format::PitchLine;
 use crate::scene::output::files;
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_json};
 
@@ -106,6 +107,9 @@ struct Written {
 struct OutputSink {
     tracks: JsonlWriter,
     measurements: JsonlWriter,
+    /// `pitch.jsonl`, when the pipeline records the separator's pitch.
+    pitch: Option<JsonlWriter>,
+    sample_rate: f64,
     audio: BTreeMap<Label, Vec<f32>>,
     frames: usize,
     diarizer: Diarizer,
@@ -115,13 +119,29 @@ struct OutputSink {
 }
 
 impl OutputSink {
-    /// Creates the output folder and its streaming files.
-    fn create(out: &Path, frames: usize, step_s: f64) -> Result<Self, SceneError> {
+    /// Creates the output folder and its streaming files (`pitch.jsonl` with `pitch`).
+    fn create(
+        out: &Path,
+        frames: usize,
+        step_s: f64,
+        sample_rate: u32,
+        pitch: bool,
+    ) -> Result<Self, SceneError> {
         std::fs::create_dir_all(out.join(files::AUDIO_DIR))
             .map_err(|e| SceneError::new(out, format!("cannot create output folder: {e}")))?;
+        let pitch_path = out.join(files::PITCH);
+        // A pitch file of an earlier run would be scored against this run's streams.
+        if !pitch && pitch_path.exists() {
+            std::fs::remove_file(&pitch_path)
+                .map_err(|e| SceneError::new(&pitch_path, format!("cannot remove: {e}")))?;
+        }
         Ok(Self {
             tracks: JsonlWriter::create(&out.join(files::TRACKS))?,
             measurements: JsonlWriter::create(&out.join(files::MEASUREMENTS))?,
+            pitch: pitch
+                .then(|| JsonlWriter::create(&pitch_path))
+                .transpose()?,
+            sample_rate: f64::from(sample_rate),
             audio: BTreeMap::new(),
             frames,
             diarizer: Diarizer::new(0.5, 0.3, 0.5),
@@ -147,6 +167,9 @@ impl OutputSink {
     fn finish(self, out: &Path, sample_rate: u32, file_id: &str) -> Result<Written, SceneError> {
         self.tracks.finish()?;
         self.measurements.finish()?;
+        if let Some(p) = self.pitch {
+            p.finish()?;
+        }
         for (label, samples) in self.audio {
             Audio::mono(sample_rate, samples).write(
                 &out.join(files::AUDIO_DIR).join(format!("{label}.wav")),
@@ -188,6 +211,15 @@ impl OutputSink {
                     if start < buf.len() {
                         let n = samples.len().min(buf.len() - start);
                         buf[start..start + n].copy_from_slice(&samples[..n]);
+                    }
+                }
+                PipelineEvent::Pitch {
+                    centre_sample,
+                    labels,
+                } => {
+                    if let Some(w) = self.pitch.as_mut() {
+                        let t = centre_sample as f64 / self.sample_rate;
+                        w.write(&PitchLine { t, labels })?;
                     }
                 }
                 PipelineEvent::TrackBorn { label, .. } => self.labels.push(label),
@@ -234,7 +266,15 @@ pub fn process_scene(
         None
     };
     let frames = scene.audio.as_ref().map_or(0, Audio::frames);
-    let mut sink = OutputSink::create(out, frames, pipeline.clock().step_s())?;
+    // The oracle mask replaces the separator's streams, so its pitch would describe nothing.
+    let pitch = !opts.oracle_mask && pipeline.record_pitch();
+    let mut sink = OutputSink::create(
+        out,
+        frames,
+        pipeline.clock().step_s(),
+        scene.layout.sample_rate,
+        pitch,
+    )?;
     feed_scene(
         scene,
         &mut pipeline,

@@ -11,6 +11,7 @@ use std::collections::BTreeMap;
 use crate::dsp::{Complex, FrameGeometry, Istft, MultiSpectrum, Stft};
 use crate::geometry::Layout;
 use crate::label::Label;
+use crate::scene::format::LabelPitch;
 use crate::separate::{Separator, SeparatorConfig, Target};
 
 use super::config::ConfigError;
@@ -160,6 +161,18 @@ impl SeparationFeed {
         Ok(())
     }
 
+    /// Makes the inline driver emit each frame's pitches ([`PipelineEvent::Pitch`]); false
+    /// when the driver has been handed off.
+    pub fn record_pitch(&mut self) -> bool {
+        match &mut self.run {
+            Run::Inline(driver) => {
+                driver.record_pitch = true;
+                true
+            }
+            Run::HandedOff(_) => false,
+        }
+    }
+
     /// End of input: the driver releases every stream's tail.
     pub fn flush(&mut self, sink: &mut EventSink<'_>) {
         self.submit(SeparationWork::Flush, sink);
@@ -187,6 +200,8 @@ pub struct SeparationDriver {
     streams: BTreeMap<Label, Istft>,
     out: Vec<(Label, Vec<Complex>)>,
     hop_out: Vec<f64>,
+    /// Emit each frame's pitches ([`PipelineEvent::Pitch`]).
+    record_pitch: bool,
 }
 
 impl SeparationDriver {
@@ -205,6 +220,7 @@ impl SeparationDriver {
             streams: BTreeMap::new(),
             out: Vec::new(),
             hop_out: vec![0.0; geometry.hop],
+            record_pitch: false,
         })
     }
 
@@ -252,11 +268,33 @@ impl SeparationDriver {
             if self.transform(from) {
                 self.separator
                     .process_into(&self.spectra, targets, &mut self.out);
+                if self.record_pitch {
+                    self.emit_pitch(end - n / 2, sink);
+                }
                 self.emit_frame(from, sink);
             }
             self.next_frame += 1;
         }
         self.append_until(chunk, chunk_end);
+    }
+
+    /// Emits the separator's pitch of each label in the frame centred at `centre_sample`.
+    fn emit_pitch(&self, centre_sample: u64, sink: &mut EventSink<'_>) {
+        let labels: Vec<LabelPitch> = self
+            .separator
+            .pitches()
+            .map(|(label, p)| LabelPitch {
+                label,
+                f0: p.f0,
+                voicing: p.voicing,
+            })
+            .collect();
+        if !labels.is_empty() {
+            sink(PipelineEvent::Pitch {
+                centre_sample,
+                labels,
+            });
+        }
     }
 
     /// Appends the chunk's samples from the history's end up to sample index `until`.

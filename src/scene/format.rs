@@ -187,6 +187,29 @@ pub struct TracksLine {
     pub tracks: Vec<TrackFile>,
 }
 
+/// One line of `pitch.jsonl`: each label's pitch as the separator's harmonic grouping read it
+/// in the STFT frame centred at `t` (an avsep extension of the output folder, written by
+/// `avsep process` so `avsep eval` can score the grouping on its own).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct PitchLine {
+    /// Centre of the frame (s).
+    pub t: f64,
+    /// The labels the separator had a stream for in that frame.
+    pub labels: Vec<LabelPitch>,
+}
+
+/// One label's pitch in `pitch.jsonl`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct LabelPitch {
+    /// The track.
+    pub label: Label,
+    /// F0 (Hz); 0 when the label read none.
+    pub f0: f64,
+    /// Voicing in [0, 1], with the activity gate folded in: how far the grouping treats the
+    /// label as a voice at `f0`.
+    pub voicing: f64,
+}
+
 /// One estimated track in `tracks.jsonl`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TrackFile {

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::geometry::Layout;
 use crate::label::Label;
 
-use super::format::TracksLine;
+use super::format::{PitchLine, TracksLine};
 use super::reader::{load_audio_measurements, parse_json, read_jsonl};
 use super::{Audio, AudioMeasurementFrame, SceneError};
 
@@ -16,6 +16,8 @@ pub mod files {
     pub const TRACKS: &str = "tracks.jsonl";
     /// Localiser output, one line per array and frame.
     pub const MEASUREMENTS: &str = "measurements.jsonl";
+    /// The separator's pitch per label and STFT frame (an avsep extension).
+    pub const PITCH: &str = "pitch.jsonl";
     /// Who spoke when.
     pub const DIARIZATION: &str = "diarization.rttm";
     /// Run figures.
@@ -35,6 +37,8 @@ pub struct Output {
     pub measurements: Option<Vec<AudioMeasurementFrame>>,
     /// Separated streams by label.
     pub audio: BTreeMap<Label, Vec<f32>>,
+    /// The separator's pitch per label and frame, in time order.
+    pub pitch: Option<Vec<PitchLine>>,
     /// The run summary.
     pub summary: Option<serde_json::Value>,
 }
@@ -81,6 +85,10 @@ impl Output {
             })?;
             out.tracks = Some(lines);
         }
+        let pitch_path = dir.join(files::PITCH);
+        if pitch_path.exists() {
+            out.pitch = Some(load_pitch(&pitch_path)?);
+        }
         let meas_path = dir.join(files::MEASUREMENTS);
         if meas_path.exists() {
             out.measurements = Some(load_audio_measurements(&meas_path, layout)?);
@@ -117,5 +125,64 @@ impl Output {
             out.summary = Some(parse_json(&summary_path, &text, None)?);
         }
         Ok(out)
+    }
+}
+
+/// Reads `pitch.jsonl`: times finite and in order, F0s finite and not negative, voicings in
+/// [0, 1].
+fn load_pitch(path: &Path) -> Result<Vec<PitchLine>, SceneError> {
+    let mut lines = Vec::new();
+    let mut last = f64::NEG_INFINITY;
+    read_jsonl(path, |line, l: PitchLine| {
+        let err = |f: String, m: &str| SceneError::new(path, m).at_line(line).field(f);
+        if !l.t.is_finite() || l.t < last {
+            return Err(err("t".into(), "time is not finite or goes backwards"));
+        }
+        last = l.t;
+        for (i, p) in l.labels.iter().enumerate() {
+            if !(p.f0.is_finite() && p.f0 >= 0.0) {
+                return Err(err(format!("labels[{i}].f0"), "must be finite, 0 or more"));
+            }
+            if !(0.0..=1.0).contains(&p.voicing) {
+                return Err(err(format!("labels[{i}].voicing"), "must be in [0, 1]"));
+            }
+        }
+        lines.push(l);
+        Ok(())
+    })?;
+    Ok(lines)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pitch_file_is_read_and_a_bad_line_names_its_field() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join(files::PITCH);
+        let good = r#"{"t":0.032,"labels":[{"label":"3.0","f0":150.0,"voicing":1.0}]}
+{"t":0.064,"labels":[]}
+"#;
+        std::fs::write(&path, good).expect("writes");
+        let lines = load_pitch(&path).expect("reads");
+        assert_eq!(lines.len(), 2);
+        assert_eq!(lines[0].labels[0].label, Label::new(3, 0));
+        let bad = good.replace("\"voicing\":1.0", "\"voicing\":1.5");
+        std::fs::write(&path, bad).expect("writes");
+        let e = load_pitch(&path)
+            .expect_err("voicing out of range")
+            .to_string();
+        assert!(
+            e.contains("labels[0].voicing") && e.contains("pitch.jsonl:1:"),
+            "{e}"
+        );
+        let backwards = good.replace("0.064", "0.01");
+        std::fs::write(&path, backwards).expect("writes");
+        let e = load_pitch(&path).expect_err("time goes back").to_string();
+        assert!(
+            e.contains("pitch.jsonl:2:") && e.contains("backwards"),
+            "{e}"
+        );
     }
 }

@@ -3,7 +3,9 @@
 
 use schemars::schema_for;
 
-use super::format::{AudioMeasurementLine, DetectionLine, SceneFile, TracksLine, TruthFile};
+use super::format::{
+    AudioMeasurementLine, DetectionLine, PitchLine, SceneFile, TracksLine, TruthFile,
+};
 
 /// `(file name under api/, schema)` for every scene-format document.
 pub fn scene_format_schemas() -> Vec<(&'static str, serde_json::Value)> {
@@ -17,5 +19,6 @@ pub fn scene_format_schemas() -> Vec<(&'static str, serde_json::Value)> {
         ),
         ("truth.schema.json", v(schema_for!(TruthFile))),
         ("tracks-line.schema.json", v(schema_for!(TracksLine))),
+        ("pitch-line.schema.json", v(schema_for!(PitchLine))),
     ]
 }

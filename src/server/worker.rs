@@ -297,6 +297,8 @@ impl<'a> Publisher<'a> {
                 code: code.to_string(),
                 message,
             }),
+            // A live session's pipeline does not record pitch (offline diagnostics only).
+            PipelineEvent::Pitch { .. } => return,
         };
         self.session.broadcast(out);
     }

@@ -213,6 +213,13 @@ impl Pipeline {
         self.separation.as_ref().map_or(0, |s| s.delay_samples())
     }
 
+    /// Makes the separation emit each STFT frame's pitch per label ([`PipelineEvent::Pitch`],
+    /// for `pitch.jsonl`); false when the pipeline separates nothing or its separation has
+    /// been moved out.
+    pub fn record_pitch(&mut self) -> bool {
+        self.separation.as_mut().is_some_and(|s| s.record_pitch())
+    }
+
     /// Moves the separation out of the pipeline: from now on each step's separation work goes to
     /// `handoff`, in order, and whoever holds the returned driver applies it (a live session runs
     /// it on a thread of its own, so the next step's tracks never wait for this step's audio).

@@ -327,6 +327,8 @@ impl Separator {
             self.cfg.post_filter.apply_to == PostFilterTarget::ReferenceMic && self.post.enabled();
         if self.harmonic.enabled() && self.post.enabled() {
             self.regroup_harmonic(to_ref);
+        } else {
+            self.work.pitch.clear();
         }
         let (ch, rf) = (self.channels, self.reference);
         let w = &self.work;

@@ -234,6 +234,16 @@ impl Separator {
         Ok(())
     }
 
+    /// The last frame's pitch of each label as the harmonic grouping read it: its F0 (Hz, 0 for
+    /// none) and voicing in [0, 1] with the activity gate and hold folded in. Empty when the
+    /// grouping is off.
+    pub fn pitches(&self) -> impl Iterator<Item = (Label, &Pitch)> + '_ {
+        self.streams
+            .iter()
+            .zip(&self.work.pitch)
+            .map(|(s, p)| (s.label, p))
+    }
+
     /// Records each frame's effective linear filter per label (for evaluation: running
     /// [`Separator::apply_last_filters`] on parts of the input splits the output into parts).
     pub fn record_filters(&mut self, on: bool) {

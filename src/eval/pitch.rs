@@ -1,0 +1,244 @@
+//! The separator's pitch (`pitch.jsonl`) scored against each true source's voice.
+//!
+//! The harmonic grouping divides the bins a small array cannot resolve by each label's F0 and
+//! voicing, so how well it reads them bounds the separation (`--oracle-pitch` measures the
+//! bound). Each true source's signal is read by YIN at the frame times of `pitch.jsonl`, and the
+//! label the audio section mapped to the source is compared with it frame by frame: how many of
+//! the source's voiced frames the label reads as voiced, how many of its silent or unvoiced ones
+//! it reads as voiced anyway (a neighbour's leak), and how close its F0 is where both are voiced.
+
+use serde::{Deserialize, Serialize};
+
+use super::EvalConfig;
+use crate::dsp::{VoicePitch, Yin};
+use crate::label::Label;
+use crate::scene::TruthSource;
+use crate::scene::format::PitchLine;
+
+/// An F0 more than this fraction away from the true one is a gross error (the usual 20 %).
+pub const GROSS_ERROR: f64 = 0.2;
+
+/// Pitch scores of the separator.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PitchReport {
+    /// Relative F0 deviation within which a label's F0 counts as right.
+    pub tolerance: f64,
+    /// Per true source with a signal and a mapped label.
+    pub sources: Vec<SourcePitch>,
+    /// Means over the sources that have each figure.
+    pub mean: PitchFigures,
+}
+
+/// One source's pitch scores.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SourcePitch {
+    /// Source id.
+    pub id: String,
+    /// The label the audio section mapped to it.
+    pub label: Label,
+    /// Frames in which the label had a stream.
+    pub frames: usize,
+    /// Of those, frames in which the source is voiced.
+    pub voiced_frames: usize,
+    /// The figures.
+    #[serde(flatten)]
+    pub figures: PitchFigures,
+}
+
+/// Shares of frames; absent when their frames are none.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct PitchFigures {
+    /// Of the source's voiced frames, the share its label reads as voiced.
+    pub voiced_recall: Option<f64>,
+    /// Of its silent or unvoiced frames, the share its label reads as voiced.
+    pub false_voicing: Option<f64>,
+    /// Of the frames both voiced, the share with the label's F0 within `tolerance`.
+    pub f0_within_tolerance: Option<f64>,
+    /// Of the frames both voiced, the share with the label's F0 off by more than 20 %.
+    pub gross_error: Option<f64>,
+}
+
+/// Frame counts of one source.
+#[derive(Default)]
+struct Counts {
+    frames: usize,
+    voiced: usize,
+    voiced_read: usize,
+    unvoiced_read: usize,
+    within: usize,
+    gross: usize,
+}
+
+impl Counts {
+    fn add(&mut self, truth: VoicePitch, f0: f64, voicing: f64, cfg: &EvalConfig) {
+        self.frames += 1;
+        let read = voicing >= cfg.pitch_voiced && f0 > 0.0;
+        if !(truth.voicing >= cfg.pitch_voiced && truth.f0 > 0.0) {
+            self.unvoiced_read += usize::from(read);
+            return;
+        }
+        self.voiced += 1;
+        if read {
+            self.voiced_read += 1;
+            let off = (f0 / truth.f0 - 1.0).abs();
+            self.within += usize::from(off <= cfg.pitch_tolerance);
+            self.gross += usize::from(off > GROSS_ERROR);
+        }
+    }
+
+    fn figures(&self) -> PitchFigures {
+        let share = |n: usize, of: usize| (of > 0).then(|| n as f64 / of as f64);
+        PitchFigures {
+            voiced_recall: share(self.voiced_read, self.voiced),
+            false_voicing: share(self.unvoiced_read, self.frames - self.voiced),
+            f0_within_tolerance: share(self.within, self.voiced_read),
+            gross_error: share(self.gross, self.voiced_read),
+        }
+    }
+}
+
+/// Scores `lines` against `sources`, each compared with its mapped label (`labels[i]`, none:
+/// not scored), their signals at `sample_rate` Hz.
+pub fn score_pitch(
+    lines: &[PitchLine],
+    sources: &[&TruthSource],
+    labels: &[Option<Label>],
+    sample_rate: f64,
+    cfg: &EvalConfig,
+) -> PitchReport {
+    let frame = (cfg.pitch_frame_s * sample_rate).round().max(2.0) as usize;
+    let yin = Yin::new(sample_rate, cfg.pitch_f0_min_hz, cfg.pitch_f0_max_hz, frame);
+    let centres: Vec<usize> = lines
+        .iter()
+        .map(|l| (l.t * sample_rate).round().max(0.0) as usize)
+        .collect();
+    let mut scored = Vec::new();
+    for (src, label) in sources.iter().zip(labels) {
+        let (Some(signal), Some(label)) = (src.signal.as_deref(), *label) else {
+            continue;
+        };
+        let truth = yin.track_at(signal, &centres);
+        let mut c = Counts::default();
+        for (line, t) in lines.iter().zip(&truth) {
+            if let Some(p) = line.labels.iter().find(|p| p.label == label) {
+                c.add(*t, p.f0, p.voicing, cfg);
+            }
+        }
+        scored.push(SourcePitch {
+            id: src.id.clone(),
+            label,
+            frames: c.frames,
+            voiced_frames: c.voiced,
+            figures: c.figures(),
+        });
+    }
+    let mean = |f: fn(&PitchFigures) -> Option<f64>| {
+        let v: Vec<f64> = scored.iter().filter_map(|s| f(&s.figures)).collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    };
+    let mean = PitchFigures {
+        voiced_recall: mean(|f| f.voiced_recall),
+        false_voicing: mean(|f| f.false_voicing),
+        f0_within_tolerance: mean(|f| f.f0_within_tolerance),
+        gross_error: mean(|f| f.gross_error),
+    };
+    PitchReport {
+        tolerance: cfg.pitch_tolerance,
+        sources: scored,
+        mean,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::format::LabelPitch;
+
+    const FS: f64 = 16_000.0;
+
+    /// A 150 Hz voice with five harmonics during [start, end) s of a 2 s signal.
+    fn voice(start: f64, end: f64) -> Vec<f32> {
+        (0..(2.0 * FS) as usize)
+            .map(|i| {
+                let t = i as f64 / FS;
+                if t < start || t >= end {
+                    return 0.0;
+                }
+                (1..=5)
+                    .map(|h| (std::f64::consts::TAU * 150.0 * h as f64 * t).sin() / h as f64)
+                    .sum::<f64>() as f32
+            })
+            .collect()
+    }
+
+    fn source(signal: Vec<f32>) -> TruthSource {
+        TruthSource {
+            id: "s1".into(),
+            signal: Some(signal),
+            trajectory: Vec::new(),
+            active: vec![(0.5, 1.5)],
+        }
+    }
+
+    /// Lines every 32 ms with `read(t)` as the label's (F0, voicing).
+    fn lines(label: Label, read: impl Fn(f64) -> (f64, f64)) -> Vec<PitchLine> {
+        (0..62)
+            .map(|j| {
+                let t = j as f64 * 0.032;
+                let (f0, voicing) = read(t);
+                PitchLine {
+                    t,
+                    labels: vec![LabelPitch { label, f0, voicing }],
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_label_that_reads_its_voice_scores_full_marks_and_errors_are_counted() {
+        let src = source(voice(0.5, 1.5));
+        let l = Label::new(3, 0);
+        let cfg = EvalConfig::default();
+        let right = lines(l, |t| {
+            if (0.5..1.5).contains(&t) {
+                (151.0, 1.0)
+            } else {
+                (0.0, 0.0)
+            }
+        });
+        let r = score_pitch(&right, &[&src], &[Some(l)], FS, &cfg);
+        let f = r.sources[0].figures;
+        assert!(r.sources[0].voiced_frames >= 28, "{:?}", r.sources[0]);
+        // A frame straddling an edge of the voice may count as voiced for YIN and not for
+        // the label, or the other way round.
+        assert!(f.voiced_recall.unwrap() >= 0.9, "{f:?}");
+        assert!(f.false_voicing.unwrap() <= 0.1, "{f:?}");
+        assert_eq!(
+            (f.f0_within_tolerance, f.gross_error),
+            (Some(1.0), Some(0.0))
+        );
+
+        // Reading the subharmonic throughout, and voicing in the silence before the voice.
+        let wrong = lines(l, |t| if t < 1.5 { (75.0, 1.0) } else { (0.0, 0.0) });
+        let r = score_pitch(&wrong, &[&src], &[Some(l)], FS, &cfg);
+        let f = r.sources[0].figures;
+        assert_eq!(
+            (f.f0_within_tolerance, f.gross_error),
+            (Some(0.0), Some(1.0))
+        );
+        assert!(f.false_voicing.unwrap() > 0.4, "{f:?}");
+        assert_eq!(r.mean, f);
+    }
+
+    #[test]
+    fn an_unmapped_source_or_a_label_without_a_stream_is_not_scored() {
+        let src = source(voice(0.5, 1.5));
+        let cfg = EvalConfig::default();
+        let l = lines(Label::new(3, 0), |_| (150.0, 1.0));
+        let r = score_pitch(&l, &[&src], &[None], FS, &cfg);
+        assert!(r.sources.is_empty() && r.mean == PitchFigures::default());
+        let r = score_pitch(&l, &[&src], &[Some(Label::new(4, 0))], FS, &cfg);
+        assert_eq!(r.sources[0].frames, 0);
+        assert_eq!(r.sources[0].figures, PitchFigures::default());
+    }
+}
