@@ -15,7 +15,7 @@ use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::{SessionCreated, SessionState};
 use crate::protocol::{AudioSelection, OutputSelection, SampleEncoding};
 use crate::scene::format::TracksLine;
-use crate::scene::output::files;
+use crate::scene::output::{files, prepare_dir};
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, write_json};
 use crate::server::client::{
     Received, StreamOptions, ZenohClient, ZenohClientConfig, create_body, feed_channel, http,
@@ -240,8 +240,7 @@ fn write_output(
     wall_s: f64,
 ) -> Result<(), CliError> {
     let out = &args.out;
-    std::fs::create_dir_all(out.join(files::AUDIO_DIR))
-        .map_err(|e| CliError::runtime(format!("{}: {e}", out.display())))?;
+    prepare_dir(out)?;
     let mut tracks = JsonlWriter::create(&out.join(files::TRACKS))?;
     for s in &got.tracks {
         tracks.write(&TracksLine {

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use crate::label::Label;
 use crate::scene::format::PitchLine;
-use crate::scene::output::files;
+use crate::scene::output::{files, prepare_dir};
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_json};
 
 use super::PipelineEvent;
@@ -127,14 +127,8 @@ impl OutputSink {
         sample_rate: u32,
         pitch: bool,
     ) -> Result<Self, SceneError> {
-        std::fs::create_dir_all(out.join(files::AUDIO_DIR))
-            .map_err(|e| SceneError::new(out, format!("cannot create output folder: {e}")))?;
+        prepare_dir(out)?;
         let pitch_path = out.join(files::PITCH);
-        // A pitch file of an earlier run would be scored against this run's streams.
-        if !pitch && pitch_path.exists() {
-            std::fs::remove_file(&pitch_path)
-                .map_err(|e| SceneError::new(&pitch_path, format!("cannot remove: {e}")))?;
-        }
         Ok(Self {
             tracks: JsonlWriter::create(&out.join(files::TRACKS))?,
             measurements: JsonlWriter::create(&out.join(files::MEASUREMENTS))?,

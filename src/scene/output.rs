@@ -26,6 +26,38 @@ pub mod files {
     pub const AUDIO_DIR: &str = "audio";
 }
 
+/// Makes `dir` ready for a new run's output: creates it and its `audio/` folder, and removes
+/// what an earlier run wrote there that this run might not overwrite (its `audio/<label>.wav`
+/// streams, whose labels differ from run to run, and `pitch.jsonl`), so an evaluation never
+/// scores one run's streams against another's. Other files are left alone.
+pub fn prepare_dir(dir: &Path) -> Result<(), SceneError> {
+    let audio = dir.join(files::AUDIO_DIR);
+    std::fs::create_dir_all(&audio)
+        .map_err(|e| SceneError::new(dir, format!("cannot create output folder: {e}")))?;
+    let entries = std::fs::read_dir(&audio)
+        .map_err(|e| SceneError::new(&audio, format!("cannot list: {e}")))?;
+    let mut stale: Vec<PathBuf> = entries
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.extension().and_then(|e| e.to_str()) == Some("wav")
+                && p.file_stem()
+                    .and_then(|s| s.to_str())
+                    .is_some_and(|s| s.parse::<Label>().is_ok())
+        })
+        .collect();
+    let pitch = dir.join(files::PITCH);
+    if pitch.exists() {
+        stale.push(pitch);
+    }
+    for p in stale {
+        std::fs::remove_file(&p).map_err(|e| {
+            SceneError::new(&p, format!("cannot remove the earlier run's file: {e}"))
+        })?;
+    }
+    Ok(())
+}
+
 /// What an output folder holds; every part is optional.
 #[derive(Debug, Clone, Default)]
 pub struct Output {
@@ -156,6 +188,27 @@ fn load_pitch(path: &Path) -> Result<Vec<PitchLine>, SceneError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn preparing_a_folder_removes_an_earlier_runs_streams_and_pitch_only() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let d = dir.path().join("out");
+        prepare_dir(&d).expect("creates");
+        let audio = d.join(files::AUDIO_DIR);
+        for f in ["12.0.wav", "3.1.wav", "mix.wav"] {
+            std::fs::write(audio.join(f), b"x").expect("writes");
+        }
+        for f in [files::PITCH, files::TRACKS, "notes.txt"] {
+            std::fs::write(d.join(f), b"x").expect("writes");
+        }
+        prepare_dir(&d).expect("prepares");
+        let left = |p: &Path| p.exists();
+        assert!(!left(&audio.join("12.0.wav")) && !left(&audio.join("3.1.wav")));
+        assert!(!left(&d.join(files::PITCH)));
+        // Not a stream, or overwritten by every run anyway: kept.
+        assert!(left(&audio.join("mix.wav")) && left(&d.join("notes.txt")));
+        assert!(left(&d.join(files::TRACKS)));
+    }
 
     #[test]
     fn a_pitch_file_is_read_and_a_bad_line_names_its_field() {
