@@ -142,7 +142,7 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
         };
         let inputs = AudioInputs {
             sample_rate: f64::from(scene.layout.sample_rate),
-            sources: with_signal,
+            sources: with_signal.clone(),
             streams: &out.audio,
             mixture,
             tracks: tracks.as_ref(),
@@ -156,14 +156,10 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
             None
         }
         (Some(lines), Some(a)) => {
-            let sources: Vec<_> = truth
-                .sources
-                .iter()
-                .filter(|s| s.signal.is_some())
-                .collect();
+            // The audio section scored `with_signal`, in order.
             let labels: Vec<_> = a.sources.iter().map(|s| s.label).collect();
             let fs = f64::from(scene.layout.sample_rate);
-            Some(score_pitch(lines, &sources, &labels, fs, cfg))
+            Some(score_pitch(lines, &with_signal, &labels, fs, cfg))
         }
     };
     Ok(EvalReport {

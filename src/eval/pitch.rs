@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::EvalConfig;
+use super::stats::mean_of;
 use crate::dsp::{VoicePitch, Yin};
 use crate::label::Label;
 use crate::scene::TruthSource;
@@ -132,10 +133,7 @@ pub fn score_pitch(
             figures: c.figures(),
         });
     }
-    let mean = |f: fn(&PitchFigures) -> Option<f64>| {
-        let v: Vec<f64> = scored.iter().filter_map(|s| f(&s.figures)).collect();
-        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
-    };
+    let mean = |f: fn(&PitchFigures) -> Option<f64>| mean_of(scored.iter().map(|s| f(&s.figures)));
     let mean = PitchFigures {
         voiced_recall: mean(|f| f.voiced_recall),
         false_voicing: mean(|f| f.false_voicing),

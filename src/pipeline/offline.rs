@@ -128,12 +128,11 @@ impl OutputSink {
         pitch: bool,
     ) -> Result<Self, SceneError> {
         prepare_dir(out)?;
-        let pitch_path = out.join(files::PITCH);
         Ok(Self {
             tracks: JsonlWriter::create(&out.join(files::TRACKS))?,
             measurements: JsonlWriter::create(&out.join(files::MEASUREMENTS))?,
             pitch: pitch
-                .then(|| JsonlWriter::create(&pitch_path))
+                .then(|| JsonlWriter::create(&out.join(files::PITCH)))
                 .transpose()?,
             sample_rate: f64::from(sample_rate),
             audio: BTreeMap::new(),
