@@ -89,6 +89,26 @@ pub struct StreamContinuity {
     pub unassigned_share: f64,
     /// Labels with at least `continuity_share` of the blocks.
     pub stream_labels: usize,
+    /// The blocks the source's own stream does not carry, in time order: where its speech
+    /// went instead.
+    #[serde(default)]
+    pub strays: Vec<StrayBlock>,
+}
+
+/// A block of a source's active samples that its own stream does not carry.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct StrayBlock {
+    /// Start of the block (s).
+    pub start_s: f64,
+    /// End of the block (s).
+    pub end_s: f64,
+    /// The stream that carries it; none when no stream correlates with the source enough.
+    pub label: Option<Label>,
+    /// Share of the source's energy in the block that the carrying stream projects onto the
+    /// source (`<y, s>^2 / |s|^4`); none when no stream carries it.
+    pub carried: Option<f64>,
+    /// The same share for the source's own stream; none when the source has no stream.
+    pub own: Option<f64>,
 }
 
 /// Means over sources.
@@ -183,7 +203,13 @@ pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport
             bss,
             bss_mixture: bss_mix,
             bss_improvement: bss.zip(bss_mix).map(|(a, b)| a.minus(&b)),
-            continuity: continuity(&refs[i], set, &labels, &streams, block, cfg),
+            continuity: continuity(
+                &refs[i],
+                set,
+                (&labels, &streams, label),
+                (block, inputs.sample_rate),
+                cfg,
+            ),
         });
     }
     let mean = means(&sources);
@@ -258,52 +284,58 @@ fn map_sources(
     mapping
 }
 
-/// How the source's active blocks split across the streams.
+/// How the source's active blocks split across the streams (`labels` and their `streams`;
+/// `own` indexes the source's own stream) in blocks of `block` samples at `sample_rate`.
 fn continuity(
     reference: &[f64],
     set: &SampleSet,
-    labels: &[Label],
-    streams: &[Vec<f64>],
-    block: usize,
+    (labels, streams, own): (&[Label], &[Vec<f64>], Option<usize>),
+    (block, sample_rate): (usize, f64),
     cfg: &EvalConfig,
 ) -> StreamContinuity {
-    let mut blocks: Vec<(usize, usize)> = Vec::new();
-    for &(a, b) in set.ranges() {
-        let mut s = a;
-        while s < b {
-            let e = (s + block).min(b);
-            // A remainder shorter than half a block is too short to judge on its own.
-            if e - s >= block.div_ceil(2) {
-                blocks.push((s, e));
-            }
-            s = e;
-        }
-    }
+    let blocks = cut_blocks(set, block);
     let mut counts: BTreeMap<usize, usize> = BTreeMap::new();
     let mut unassigned = 0usize;
+    let mut strays = Vec::new();
     for &(a, b) in &blocks {
         let s = &reference[a..b];
         let ss: f64 = s.iter().map(|v| v * v).sum();
+        // Per stream: its projected energy onto the source and its correlation with it.
+        let carry = |y: &[f64]| -> (f64, f64) {
+            let y = &y[a..b];
+            let ys: f64 = y.iter().zip(s).map(|(p, q)| p * q).sum();
+            let yy: f64 = y.iter().map(|v| v * v).sum();
+            let rho = if ss > 0.0 && yy > 0.0 {
+                ys / (ss * yy).sqrt()
+            } else {
+                0.0
+            };
+            (ys * ys, rho)
+        };
         let best = streams
             .iter()
             .enumerate()
-            .map(|(j, y)| {
-                let y = &y[a..b];
-                let ys: f64 = y.iter().zip(s).map(|(p, q)| p * q).sum();
-                let yy: f64 = y.iter().map(|v| v * v).sum();
-                let rho = if ss > 0.0 && yy > 0.0 {
-                    ys / (ss * yy).sqrt()
-                } else {
-                    0.0
-                };
-                (j, ys * ys, rho)
-            })
-            .max_by(|x, y| x.1.total_cmp(&y.1));
-        match best {
-            Some((j, _, rho)) if rho >= cfg.continuity_min_correlation => {
+            .map(|(j, y)| (j, carry(y)))
+            .max_by(|x, y| x.1.0.total_cmp(&y.1.0));
+        let carrier = match best {
+            Some((j, (_, rho))) if rho >= cfg.continuity_min_correlation => {
                 *counts.entry(j).or_default() += 1;
+                Some(j)
             }
-            _ => unassigned += 1,
+            _ => {
+                unassigned += 1;
+                None
+            }
+        };
+        if carrier.is_none() || carrier != own {
+            let share = |j: usize| (ss > 0.0).then(|| carry(&streams[j]).0 / (ss * ss));
+            strays.push(StrayBlock {
+                start_s: a as f64 / sample_rate,
+                end_s: b as f64 / sample_rate,
+                label: carrier.map(|j| labels[j]),
+                carried: carrier.and_then(share),
+                own: own.and_then(share),
+            });
         }
     }
     let n = blocks.len().max(1) as f64;
@@ -327,7 +359,25 @@ fn continuity(
         } else {
             unassigned as f64 / n
         },
+        strays,
     }
+}
+
+/// The active samples cut into blocks of `block` samples; a remainder shorter than half a
+/// block is too short to judge on its own and is left out.
+fn cut_blocks(set: &SampleSet, block: usize) -> Vec<(usize, usize)> {
+    let mut blocks = Vec::new();
+    for &(a, b) in set.ranges() {
+        let mut s = a;
+        while s < b {
+            let e = (s + block).min(b);
+            if e - s >= block.div_ceil(2) {
+                blocks.push((s, e));
+            }
+            s = e;
+        }
+    }
+    blocks
 }
 
 #[cfg(test)]
@@ -399,6 +449,44 @@ mod tests {
         assert_eq!(rb.continuity.shares[0].label, Label::new(3, 0));
         assert_eq!(rb.continuity.blocks, 4);
         assert!(r.mean.si_sdr_improvement_db.is_some());
+    }
+
+    #[test]
+    fn lists_the_blocks_another_stream_carries() {
+        let fs = 1000.0;
+        let sa = noise(4000, 3);
+        let a = source("a", sa.clone(), vec![(0.0, 4.0)]);
+        // Label 1.0 carries a except in 1.0-1.5 s, which label 2.0 carries, and in 3.5-4 s,
+        // which no stream carries.
+        let mut own = sa.clone();
+        own[1000..1500].fill(0.0);
+        own[3500..].fill(0.0);
+        let mut other = vec![0.0f32; 4000];
+        other[1000..1500].copy_from_slice(&sa[1000..1500]);
+        let streams = BTreeMap::from([(Label::new(1, 0), own), (Label::new(2, 0), other)]);
+        let inputs = AudioInputs {
+            sample_rate: fs,
+            sources: vec![&a],
+            streams: &streams,
+            mixture: None,
+            tracks: None,
+        };
+        let cfg = EvalConfig {
+            bss_filter_taps: 16,
+            ..Default::default()
+        };
+        let r = score_audio(&inputs, &cfg).unwrap();
+        let c = &r.sources[0].continuity;
+        assert_eq!(r.sources[0].label, Some(Label::new(1, 0)));
+        assert_eq!((c.blocks, c.stream_labels), (8, 2));
+        assert_eq!(c.strays.len(), 2, "{:?}", c.strays);
+        let (moved, lost) = (&c.strays[0], &c.strays[1]);
+        assert_eq!((moved.start_s, moved.end_s), (1.0, 1.5));
+        assert_eq!(moved.label, Some(Label::new(2, 0)));
+        assert!((moved.carried.unwrap() - 1.0).abs() < 1e-9);
+        assert_eq!(moved.own, Some(0.0));
+        assert_eq!((lost.start_s, lost.end_s, lost.label), (3.5, 4.0, None));
+        assert_eq!((lost.carried, lost.own), (None, Some(0.0)));
     }
 
     #[test]

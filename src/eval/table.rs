@@ -290,7 +290,38 @@ fn audio(out: &mut String, a: &AudioReport) -> fmt::Result {
         [m.si_sdr_db, m.si_sdr_mixture_db, m.si_sdr_improvement_db],
         [m.bss, m.bss_mixture, m.bss_improvement],
         num(m.stream_labels, 2),
-    )
+    )?;
+    strays(out, a)
+}
+
+/// The blocks each source's own stream does not carry, and which stream does.
+fn strays(out: &mut String, a: &AudioReport) -> fmt::Result {
+    if a.sources.iter().all(|s| s.continuity.strays.is_empty()) {
+        return Ok(());
+    }
+    writeln!(
+        out,
+        "  Blocks off the source's own stream (share of the block's source energy each stream \
+         projects):"
+    )?;
+    for s in &a.sources {
+        let own = s.label.map_or("-".into(), |l| l.to_string());
+        for b in &s.continuity.strays {
+            let on = b.label.map_or("no stream".into(), |l| format!("on {l}"));
+            let span = format!("{:.2}-{:.2} s", b.start_s, b.end_s);
+            writeln!(
+                out,
+                "    {:<10} {:>16}  {:<12} {:>7}   own {} {:>7}",
+                s.id,
+                span,
+                on,
+                pct(b.carried),
+                own,
+                pct(b.own)
+            )?;
+        }
+    }
+    Ok(())
 }
 
 fn pitch_row(
