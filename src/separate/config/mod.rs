@@ -294,7 +294,7 @@ pub struct HarmonicConfig {
     /// The share at or above which the voicing is kept whole; between the two it is scaled.
     /// Recorded speech gains from a stricter gate, 0.1 / 0.5 (`activity_low` / `activity_high`)
     /// against the defaults, full pipeline, SI-SDRi (dB) / streams per talker: paper-linear6
-    /// seeds 1-12 +5.47 / 1.14 against +5.11 / 1.22 (seeds 13-24 +5.26 against +4.84), uca8
+    /// seeds 1-12 +5.56 / 1.11 against +5.19 / 1.22 (seeds 13-24 +5.34 against +4.92), uca8
     /// three talkers seeds 1-6 +6.00 against +5.82 (seeds 7-12 +5.93 against +5.70); the labels'
     /// false voicing (`avsep eval`'s pitch section) falls from 12 % to 4 % of the silent or
     /// unvoiced frames and their voiced recall from 46 % to 34 %. The simulator's voices, more

@@ -10,7 +10,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use super::config::{BirthConfig, TrackerConfig, UkfConfig};
-use super::filter::prepare;
+use super::filter::{Prepared, prepare};
 use super::gaussian::Gaussian;
 use super::modes::Modes;
 use super::motion::{position_of, state_of};
@@ -257,6 +257,7 @@ fn eligibility<const N: usize>(
             .filter_map(|g| prepare(sensor, g, ctx.ukf).map(|p| (g, p)))
             .filter(|(g, p)| {
                 sensor.p_detect_of(&g.mean, p, scan.activity) > CAN_DETECT * sensor.p_detect
+                    && predicts_precisely(sensor, p, ctx.cfg.suppress_max_spread)
             })
             .map(|(_, p)| p)
             .collect();
@@ -275,6 +276,17 @@ fn eligibility<const N: usize>(
         eligible.push(flags);
     }
     (eligible, total)
+}
+
+/// Whether a track's predicted measurement `p` is precise enough to claim the measurements in
+/// its gate: the spread its own uncertainty gives each measured component is at most
+/// `max_spread` of the sensor's noise standard deviations there.
+fn predicts_precisely<const N: usize>(
+    sensor: &Sensor<N>,
+    p: &Prepared<N>,
+    max_spread: f64,
+) -> bool {
+    (0..sensor.dim).all(|i| p.state_spread(sensor, i) <= max_spread * sensor.r[(i, i)].sqrt())
 }
 
 /// Sorts, removes births that duplicate a better one, caps and assigns r_B; with the scans that
@@ -420,6 +432,41 @@ mod tests {
             },
         ];
         assert!(births_from_measurements(&ctx, &explained, &[]).is_empty());
+    }
+
+    #[test]
+    fn a_track_unmeasured_for_long_does_not_suppress_a_birth_in_its_wide_gate() {
+        let cfg = TrackerConfig::default();
+        let (sensors, modes) = sensors(&cfg);
+        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let source = Vec3::new(2.6, 3.0, 1.6);
+        let px = sensors[0]
+            .measure(&state_of::<6>(&source, &Vec3::zeros()))
+            .unwrap();
+        let ctx = BirthContext::new(&cfg, Some(&region), &sensors, &modes);
+        let zc = [px];
+        let scans = [BirthScan {
+            sensor: 0,
+            z: &zc,
+            assoc: &[0.0],
+            activity: None,
+        }];
+        // A track last measured long ago, 0.8 m from the face with 0.8 m of spread per axis:
+        // the face lies inside its gate, and the camera could still see it.
+        let stale = Gaussian {
+            mean: state_of::<6>(&(source + Vec3::new(0.8, -0.5, 0.3)), &Vec3::zeros()),
+            cov: SMatrix::<f64, 6, 6>::identity() * 0.64,
+        };
+        let p = prepare(&sensors[0], &stale, &cfg.ukf).unwrap();
+        assert!(p.mahalanobis(&p.innovation(&sensors[0], &px)) <= sensors[0].birth_gate);
+        assert!(sensors[0].p_detect_of(&stale.mean, &p, None) > CAN_DETECT * sensors[0].p_detect);
+        assert_eq!(births_from_measurements(&ctx, &scans, &[stale]).len(), 1);
+        // The same track measured a step ago claims the face.
+        let fresh = Gaussian {
+            cov: SMatrix::<f64, 6, 6>::identity() * 0.01,
+            mean: state_of::<6>(&source, &Vec3::zeros()),
+        };
+        assert!(births_from_measurements(&ctx, &scans, &[fresh]).is_empty());
     }
 
     #[test]

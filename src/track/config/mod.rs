@@ -439,6 +439,17 @@ pub struct BirthConfig {
     /// births in their gate: a tentative track already offers the explanation a birth would,
     /// and a duplicate label can only share its existence and take over its identity later.
     pub suppress_existence: f64,
+    /// A track density suppresses births only while it predicts the sensor's measurement
+    /// within this many of the sensor's noise standard deviations (the spread its own
+    /// uncertainty gives every measured component). One unmeasured for long (out of the
+    /// camera's view and silent) spreads over much of the image, and inside its wide gate it
+    /// explains a new face no better than a birth would. Where births were suppressed, the
+    /// tracks that did it spread at most 3 noise deviations and such a stale one 30 or more.
+    /// 5 (default) against no bound, recorded speech on paper-linear6 seeds 1-24: in the two
+    /// scenes with a stale track the talker walking in gets a track 0.9 s sooner (3-D MOTA
+    /// 0.59 / 0.56 -> 0.64 / 0.62, SI-SDRi +0.9 dB each); every other scene, simulated or
+    /// recorded, paper-linear6 or uca8, is unchanged.
+    pub suppress_max_spread: f64,
 }
 
 impl Default for BirthConfig {
@@ -457,6 +468,7 @@ impl Default for BirthConfig {
             default_height_m: 1.5,
             suppress_gate_probability: 0.99,
             suppress_existence: 0.01,
+            suppress_max_spread: 5.0,
         }
     }
 }

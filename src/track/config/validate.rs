@@ -213,6 +213,7 @@ impl TrackerConfig {
             "birth.suppress_gate_probability",
         )?;
         probability(b.suppress_existence, "birth.suppress_existence")?;
+        positive(b.suppress_max_spread, "birth.suppress_max_spread")?;
         Ok(())
     }
 }
