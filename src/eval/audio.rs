@@ -317,24 +317,26 @@ fn continuity(
             .enumerate()
             .map(|(j, y)| (j, carry(y)))
             .max_by(|x, y| x.1.0.total_cmp(&y.1.0));
+        // The carrying stream and its projected energy.
         let carrier = match best {
-            Some((j, (_, rho))) if rho >= cfg.continuity_min_correlation => {
+            Some((j, (energy, rho))) if rho >= cfg.continuity_min_correlation => {
                 *counts.entry(j).or_default() += 1;
-                Some(j)
+                Some((j, energy))
             }
             _ => {
                 unassigned += 1;
                 None
             }
         };
-        if carrier.is_none() || carrier != own {
-            let share = |j: usize| (ss > 0.0).then(|| carry(&streams[j]).0 / (ss * ss));
+        let carrier_index = carrier.map(|(j, _)| j);
+        if carrier_index.is_none() || carrier_index != own {
+            let share = |energy: f64| (ss > 0.0).then(|| energy / (ss * ss));
             strays.push(StrayBlock {
                 start_s: a as f64 / sample_rate,
                 end_s: b as f64 / sample_rate,
-                label: carrier.map(|j| labels[j]),
-                carried: carrier.and_then(share),
-                own: own.and_then(share),
+                label: carrier_index.map(|j| labels[j]),
+                carried: carrier.and_then(|(_, energy)| share(energy)),
+                own: own.and_then(|j| share(carry(&streams[j]).0)),
             });
         }
     }
