@@ -324,6 +324,66 @@ mod tests {
     use crate::track::config::FilterKind;
     use crate::track::{Measurement, Scan};
 
+    /// The existence of a direction-only track after 40 steps of evidence at one bearing and
+    /// `silent` steps in which the array hears a voice elsewhere, with the cap at three
+    /// hypotheses.
+    fn existence_after_silence(keep_deaths: bool, silent: u64) -> f64 {
+        let mut cfg = TrackerConfig::default();
+        cfg.glmb.max_hypotheses = 3;
+        cfg.glmb.keep_deaths = keep_deaths;
+        let sensor = SensorModel::AudioDirection {
+            origin: Vec3::new(3.0, 2.5, 0.8),
+            noise_std_rad: 5f64.to_radians(),
+            uses_elevation: false,
+            cone_axis: None,
+            p_detect: 0.9,
+            min_p_detect: 0.02,
+            clutter_rate: 0.5,
+            filter: FilterKind::Ekf,
+        };
+        let region = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
+        let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
+        let mut tracker =
+            GlmbTracker::new(&cfg, motion, vec![sensor], Some(region), vec![], 1).unwrap();
+        for k in 0..40 + silent {
+            let azimuth = if k < 40 { 0.7 } else { -2.0 };
+            tracker.step(&StepInput {
+                k,
+                t: k as f64 * 0.128,
+                scans: vec![Scan {
+                    sensor: 0,
+                    measurements: vec![Measurement::Direction {
+                        azimuth,
+                        elevation: None,
+                    }],
+                    activity: Some(0.9),
+                    sounding: Vec::new(),
+                }],
+            });
+        }
+        // The labels born while the bearing was held (one track, whatever its birth step).
+        tracker
+            .existence()
+            .iter()
+            .filter(|(l, _)| l.birth_step < 40)
+            .map(|(_, r)| *r)
+            .sum()
+    }
+
+    /// Under a tight cap the hypotheses kept all hold the track alive and missed: its death
+    /// never carries forward. Keeping the best hypothesis without each label lets it die.
+    #[test]
+    fn a_track_without_evidence_dies_only_if_its_death_survives_the_cap() {
+        let before = existence_after_silence(true, 0);
+        assert!(before > 0.99, "confirmed: {before}");
+        // A voice that may pause explains the misses, so the existence falls slowly; with the
+        // deaths cut it does not fall at all.
+        let kept = existence_after_silence(true, 40);
+        let cut = existence_after_silence(false, 40);
+        assert!(kept < 0.9, "with its death kept: {kept}");
+        assert!(cut > 0.999, "with its death cut: {cut}");
+    }
+
     /// A tentative track (existence far below a confirmed one's) already explains the
     /// measurements at its bearing: they seed no second birth beside it, which could only share
     /// its existence and later take over its identity.

@@ -144,9 +144,11 @@ impl<const N: usize> JointUpdate<N> {
         self.start(prior, m);
         let half: Vec<f64> = prior.hyps.iter().map(|h| (0.5 * h.0).exp()).collect();
         let total: f64 = half.iter().sum();
+        let least = m.glmb.min_parent_samples;
         let mut budget: Vec<usize> = half
             .iter()
             .map(|w| (m.glmb.requested_hypotheses as f64 * w / total).round() as usize)
+            .map(|b| if b > 0 { b.max(least) } else { 0 })
             .collect();
         if budget.iter().all(|&b| b == 0) {
             budget[0] = 1;
@@ -482,6 +484,39 @@ impl<const N: usize> JointUpdate<N> {
         corr
     }
 
+    /// Truncates `order` (children by decreasing weight) to its first `max`, then appends, for
+    /// each label of a kept child, the best child without that label where the cap cut it.
+    fn keep_deaths(&self, order: &mut Vec<usize>, max: usize) {
+        if order.len() <= max {
+            return;
+        }
+        let label_of = |e: &u32| self.new_entries[*e as usize].as_ref().map(|x| x.label);
+        let mut labels: Vec<Label> = order[..max]
+            .iter()
+            .flat_map(|&h| self.children.get(h).iter().filter_map(label_of))
+            .collect();
+        labels.sort_unstable();
+        labels.dedup();
+        let mut extra = Vec::new();
+        for label in labels {
+            let without = order.iter().position(|&h| {
+                !self
+                    .children
+                    .get(h)
+                    .iter()
+                    .any(|e| label_of(e) == Some(label))
+            });
+            if let Some(i) = without.filter(|&i| i >= max) {
+                extra.push(order[i]);
+            }
+        }
+        extra.sort_unstable();
+        extra.dedup();
+        extra.sort_unstable_by(|&a, &b| self.child_logw[b].total_cmp(&self.child_logw[a]));
+        order.truncate(max);
+        order.extend(extra);
+    }
+
     /// Normalises, prunes, caps and compacts the children into the new posterior.
     fn finish(&mut self, cfg: &GlmbConfig) -> Posterior<N> {
         let lse = log_sum_exp(self.child_logw.iter().copied());
@@ -493,7 +528,11 @@ impl<const N: usize> JointUpdate<N> {
             .filter(|&h| self.child_logw[h] - lse >= floor)
             .collect();
         order.sort_unstable_by(|&a, &b| self.child_logw[b].total_cmp(&self.child_logw[a]));
-        order.truncate(cfg.max_hypotheses);
+        if cfg.keep_deaths {
+            self.keep_deaths(&mut order, cfg.max_hypotheses);
+        } else {
+            order.truncate(cfg.max_hypotheses);
+        }
         let kept = log_sum_exp(order.iter().map(|&h| self.child_logw[h]));
         let mut remap = vec![u32::MAX; self.new_entries.len()];
         let mut out = Posterior {
