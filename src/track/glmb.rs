@@ -324,6 +324,41 @@ mod tests {
     use crate::track::config::FilterKind;
     use crate::track::{Measurement, Scan};
 
+    /// A tracker with one array's direction-only sensor at (3, 2.5, 0.8) m in a
+    /// 6 x 5 x 2.5 m room.
+    fn direction_tracker(cfg: &TrackerConfig, p_detect: f64, clutter_rate: f64) -> GlmbTracker<6> {
+        let sensor = SensorModel::AudioDirection {
+            origin: Vec3::new(3.0, 2.5, 0.8),
+            noise_std_rad: 5f64.to_radians(),
+            uses_elevation: false,
+            cone_axis: None,
+            p_detect,
+            min_p_detect: 0.02,
+            clutter_rate,
+            filter: FilterKind::Ekf,
+        };
+        let region = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
+        let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
+        GlmbTracker::new(cfg, motion, vec![sensor], Some(region), vec![], 1).unwrap()
+    }
+
+    /// Step `k` (128 ms apart) in which the array hears one voice at `azimuth` (rad).
+    fn heard(k: u64, azimuth: f64) -> StepInput {
+        StepInput {
+            k,
+            t: k as f64 * 0.128,
+            scans: vec![Scan {
+                sensor: 0,
+                measurements: vec![Measurement::Direction {
+                    azimuth,
+                    elevation: None,
+                }],
+                activity: Some(0.9),
+                sounding: Vec::new(),
+            }],
+        }
+    }
+
     /// The existence of a direction-only track after 40 steps of evidence at one bearing and
     /// `silent` steps in which the array hears a voice elsewhere, with the cap at three
     /// hypotheses.
@@ -331,35 +366,9 @@ mod tests {
         let mut cfg = TrackerConfig::default();
         cfg.glmb.max_hypotheses = 3;
         cfg.glmb.keep_deaths = keep_deaths;
-        let sensor = SensorModel::AudioDirection {
-            origin: Vec3::new(3.0, 2.5, 0.8),
-            noise_std_rad: 5f64.to_radians(),
-            uses_elevation: false,
-            cone_axis: None,
-            p_detect: 0.9,
-            min_p_detect: 0.02,
-            clutter_rate: 0.5,
-            filter: FilterKind::Ekf,
-        };
-        let region = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
-        let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
-        let mut tracker =
-            GlmbTracker::new(&cfg, motion, vec![sensor], Some(region), vec![], 1).unwrap();
+        let mut tracker = direction_tracker(&cfg, 0.9, 0.5);
         for k in 0..40 + silent {
-            let azimuth = if k < 40 { 0.7 } else { -2.0 };
-            tracker.step(&StepInput {
-                k,
-                t: k as f64 * 0.128,
-                scans: vec![Scan {
-                    sensor: 0,
-                    measurements: vec![Measurement::Direction {
-                        azimuth,
-                        elevation: None,
-                    }],
-                    activity: Some(0.9),
-                    sounding: Vec::new(),
-                }],
-            });
+            tracker.step(&heard(k, if k < 40 { 0.7 } else { -2.0 }));
         }
         // The labels born while the bearing was held (one track, whatever its birth step).
         tracker
@@ -390,36 +399,8 @@ mod tests {
     #[test]
     fn a_tentative_track_suppresses_births_from_its_own_measurements() {
         let cfg = TrackerConfig::default();
-        let origin = Vec3::new(3.0, 2.5, 0.8);
-        let sensor = SensorModel::AudioDirection {
-            origin,
-            noise_std_rad: 5f64.to_radians(),
-            uses_elevation: false,
-            cone_axis: None,
-            p_detect: 0.6,
-            min_p_detect: 0.02,
-            clutter_rate: 2.0,
-            filter: FilterKind::Ekf,
-        };
-        let region = Aabb::new(Vec3::zeros(), Vec3::new(6.0, 5.0, 2.5)).unwrap();
-        let motion = MotionModel::<6>::from_config(&cfg.motion).unwrap();
-        let mut tracker =
-            GlmbTracker::new(&cfg, motion, vec![sensor], Some(region), vec![], 1).unwrap();
-        let step = |tracker: &mut GlmbTracker<6>, k: u64, az: f64| {
-            tracker.step(&StepInput {
-                k,
-                t: k as f64 * 0.128,
-                scans: vec![Scan {
-                    sensor: 0,
-                    measurements: vec![Measurement::Direction {
-                        azimuth: az,
-                        elevation: None,
-                    }],
-                    activity: Some(0.9),
-                    sounding: Vec::new(),
-                }],
-            })
-        };
+        let mut tracker = direction_tracker(&cfg, 0.6, 2.0);
+        let step = |tracker: &mut GlmbTracker<6>, k: u64, az: f64| tracker.step(&heard(k, az));
         step(&mut tracker, 0, 0.7);
         assert_eq!(
             tracker.pending.len(),
