@@ -497,22 +497,23 @@ impl<const N: usize> JointUpdate<N> {
             .collect();
         labels.sort_unstable();
         labels.dedup();
-        let mut extra = Vec::new();
-        for label in labels {
-            let without = order.iter().position(|&h| {
-                !self
-                    .children
-                    .get(h)
-                    .iter()
-                    .any(|e| label_of(e) == Some(label))
-            });
-            if let Some(i) = without.filter(|&i| i >= max) {
-                extra.push(order[i]);
-            }
-        }
-        extra.sort_unstable();
-        extra.dedup();
-        extra.sort_unstable_by(|&a, &b| self.child_logw[b].total_cmp(&self.child_logw[a]));
+        // Positions in `order` of the cut children to keep: sorted, they stay by weight.
+        let mut cut: Vec<usize> = labels
+            .into_iter()
+            .filter_map(|label| {
+                order.iter().position(|&h| {
+                    !self
+                        .children
+                        .get(h)
+                        .iter()
+                        .any(|e| label_of(e) == Some(label))
+                })
+            })
+            .filter(|&i| i >= max)
+            .collect();
+        cut.sort_unstable();
+        cut.dedup();
+        let extra: Vec<usize> = cut.iter().map(|&i| order[i]).collect();
         order.truncate(max);
         order.extend(extra);
     }
