@@ -371,11 +371,16 @@ mod tests {
         (sensors, modes)
     }
 
+    /// The 4 x 5 x 2.5 m room of these tests.
+    fn room() -> Aabb {
+        Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap()
+    }
+
     #[test]
     fn camera_ray_and_audio_azimuth_meet_at_the_source() {
         let cfg = TrackerConfig::default();
         let (sensors, modes) = sensors(&cfg);
-        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let region = room();
         let source = Vec3::new(2.6, 3.0, 1.6);
         let x = state_of::<6>(&source, &Vec3::zeros());
         let px = sensors[0].measure(&x).unwrap();
@@ -438,7 +443,7 @@ mod tests {
     fn a_track_unmeasured_for_long_does_not_suppress_a_birth_in_its_wide_gate() {
         let cfg = TrackerConfig::default();
         let (sensors, modes) = sensors(&cfg);
-        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let region = room();
         let source = Vec3::new(2.6, 3.0, 1.6);
         let px = sensors[0]
             .measure(&state_of::<6>(&source, &Vec3::zeros()))
@@ -473,7 +478,7 @@ mod tests {
     fn a_lone_azimuth_gives_a_broad_birth_on_its_bearing() {
         let cfg = TrackerConfig::default();
         let (sensors, modes) = sensors(&cfg);
-        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let region = room();
         let ctx = BirthContext::new(&cfg, Some(&region), &sensors, &modes);
         let za = [Vector3::new(0.3, 0.0, 0.0)];
         let scans = [BirthScan {
@@ -494,7 +499,7 @@ mod tests {
     fn a_voice_where_the_camera_sees_no_face_starts_with_the_camera_miss_against_it() {
         let cfg = TrackerConfig::default();
         let (sensors, modes) = sensors(&cfg);
-        let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(4.0, 5.0, 2.5)).unwrap();
+        let region = room();
         let ctx = BirthContext::new(&cfg, Some(&region), &sensors, &modes);
         // An azimuth towards a point the camera sees well.
         let target = Vec3::new(2.6, 3.0, 1.6);
