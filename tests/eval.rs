@@ -276,6 +276,22 @@ fn assert_position_scores(all: &TrackingFigures) {
     // IDTP: s1 40 steps + s2 20 steps with one of its two labels, out of 80 + 80.
     assert!(close(p.idf1.unwrap(), 120.0 / 160.0, 1e-12));
     assert_eq!(p.mostly_tracked, 2);
+    // GOSPA: two pairs 0.2 m apart, nothing missed or false, at every step.
+    assert!(close(all.gospa.total, 0.4, 1e-9), "{:?}", all.gospa);
+    assert!(close(
+        all.gospa.missed + all.gospa.false_objects,
+        0.0,
+        1e-12
+    ));
+    // HOTA: 0.2 m at the 0.5 m gate is similarity 0.6, a true positive at the 12 thresholds
+    // 0.05-0.60 and a miss plus a false positive at the 7 above. Where matched, s1 keeps one
+    // label (40 of 40 steps) and s2 shares two (20 of 40 each): AssA = (40 + 2 * 20 / 2) / 80.
+    let h = p.hota.unwrap();
+    let matched = 12.0 / 19.0;
+    assert!(close(h.deta, matched, 1e-9), "{h:?}");
+    assert!(close(h.assa, matched * 0.75, 1e-9), "{h:?}");
+    assert!(close(h.hota, matched * 0.75f64.sqrt(), 1e-9), "{h:?}");
+    assert!(close(h.loca, (12.0 * 0.6 + 7.0) / 19.0, 1e-9), "{h:?}");
 }
 
 /// OSPA(2) at each step and its mean.

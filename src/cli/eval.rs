@@ -27,7 +27,8 @@ pub struct EvalArgs {
     /// Evaluation settings (JSON, or TOML by extension) merged over the defaults.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
-    /// CLEAR MOT / IDF1 distance gate in metres (overrides the settings file).
+    /// CLEAR MOT / IDF1 distance gate in metres, where HOTA's similarity reaches 0 (overrides
+    /// the settings file).
     #[arg(long, value_name = "M")]
     pub gate: Option<f64>,
 }

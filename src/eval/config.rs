@@ -19,17 +19,17 @@ pub enum FrameAnchor {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct EvalConfig {
-    /// OSPA and OSPA(2) cut-off c in metres (the paper: 1 m).
+    /// OSPA, OSPA(2) and GOSPA cut-off c in metres (the paper: 1 m).
     pub ospa_cutoff_m: f64,
-    /// OSPA and OSPA(2) order p (the paper: 1, so localisation + cardinality = total).
+    /// OSPA, OSPA(2) and GOSPA order p (the paper: 1, so the parts add up to the total).
     pub ospa_order: f64,
     /// OSPA(2) sliding window in tracker steps (the paper: 10).
     pub ospa2_window_steps: usize,
     /// CLEAR MOT / IDF1 distance gate in metres: a track farther than this from a true source
-    /// does not match it.
+    /// does not match it. HOTA's similarity falls linearly from 1 to 0 at this distance.
     pub gate_m: f64,
     /// Gate in degrees of azimuth for the direction-space tracking figures (seen from the first
-    /// array's centroid).
+    /// array's centroid), and the angle where their HOTA similarity reaches 0.
     pub azimuth_gate_deg: f64,
     /// A direction candidate within this many degrees of a true source's azimuth counts as a hit.
     pub doa_tolerance_deg: f64,

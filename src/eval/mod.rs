@@ -12,6 +12,8 @@ pub mod bss_eval;
 mod cholesky;
 pub mod clear_mot;
 mod config;
+pub mod gospa;
+pub mod hota;
 pub mod identity;
 pub mod measurements;
 pub mod ospa;

@@ -88,6 +88,16 @@ fn mot_rows(f: &MotFigures) -> Vec<(String, String)> {
             "IDP / IDR".into(),
             format!("{} / {}", pct(f.idp), pct(f.idr)),
         ),
+        ("HOTA".into(), pct(f.hota.map(|h| h.hota))),
+        (
+            "  DetA / AssA / LocA".into(),
+            format!(
+                "{} / {} / {}",
+                pct(f.hota.map(|h| h.deta)),
+                pct(f.hota.map(|h| h.assa)),
+                pct(f.hota.map(|h| h.loca))
+            ),
+        ),
         ("ID switches".into(), f.switches.to_string()),
         (
             "FP / FN".into(),
@@ -120,6 +130,16 @@ fn figure_rows(f: &TrackingFigures) -> Vec<(String, String)> {
             ),
         ),
         ("OSPA(2) (m)".into(), num(Some(f.ospa2.total), 3)),
+        ("GOSPA (m)".into(), num(Some(f.gospa.total), 3)),
+        (
+            "  loc / missed / false".into(),
+            format!(
+                "{} / {} / {}",
+                num(Some(f.gospa.localisation), 3),
+                num(Some(f.gospa.missed), 3),
+                num(Some(f.gospa.false_objects), 3)
+            ),
+        ),
     ];
     rows.extend(
         mot_rows(&f.position)
@@ -173,9 +193,9 @@ fn tracks(out: &mut String, t: &TracksReport, r: &EvalReport) -> fmt::Result {
         c.azimuth_gate_deg,
         c.ospa2_window_steps
     )?;
-    writeln!(out, "  {:<30} {:>14} {:>14}", "", "all present", "audible")?;
+    writeln!(out, "  {:<30} {:>22} {:>22}", "", "all present", "audible")?;
     for ((k, a), (_, b)) in figure_rows(&t.all).into_iter().zip(figure_rows(&t.audible)) {
-        writeln!(out, "  {k:<30} {a:>14} {b:>14}")?;
+        writeln!(out, "  {k:<30} {a:>22} {b:>22}")?;
     }
     writeln!(
         out,

@@ -1,5 +1,5 @@
 //! Scores of the tracker's output (`tracks.jsonl`): at each line's time the estimated set against
-//! the true positions of the sources present then (OSPA, OSPA(2), CLEAR MOT, IDF1), the same
+//! the true positions of the sources present then (OSPA, GOSPA, OSPA(2), CLEAR MOT, IDF1, HOTA), the same
 //! figures in direction space (azimuth from the first array's centroid) and in each camera's
 //! image, and per source the track initiation delay and the labels that carried it.
 //!
@@ -15,6 +15,8 @@ use crate::scene::format::TracksLine;
 
 use super::clear_mot::{MotResult, clear_mot};
 use super::config::EvalConfig;
+use super::gospa::{GospaValue, gospa, mean_gospa};
+use super::hota::{HotaScores, hota};
 use super::identity::{IdentityScores, identity_scores};
 use super::ospa::{OspaParams, OspaValue, TrackSamples, mean_ospa, ospa, ospa2_series};
 use super::source_tracking::{SourceContext, source_tracking};
@@ -60,6 +62,8 @@ pub struct TrackingFigures {
     pub ospa: OspaValue,
     /// Mean OSPA(2) (m) over steps.
     pub ospa2: OspaValue,
+    /// Mean GOSPA (m, alpha = 2, OSPA's cut-off and order) over steps.
+    pub gospa: GospaValue,
     /// CLEAR MOT and identity scores in 3-D with the distance gate.
     pub position: MotFigures,
     /// Azimuth error (deg, from the first array's centroid) of the 3-D matched pairs.
@@ -108,10 +112,17 @@ pub struct MotFigures {
     pub idp: Option<f64>,
     /// IDR.
     pub idr: Option<f64>,
+    /// HOTA with its parts; the similarity falls linearly from 1 at distance 0 to 0 at the gate.
+    pub hota: Option<HotaScores>,
 }
 
 impl MotFigures {
-    fn new(m: &MotResult, id: &IdentityScores, gate: f64, to_unit: fn(f64) -> f64) -> Self {
+    fn new(
+        m: &MotResult,
+        (id, hota): (&IdentityScores, Option<HotaScores>),
+        gate: f64,
+        to_unit: fn(f64) -> f64,
+    ) -> Self {
         Self {
             gate: to_unit(gate),
             mota: m.mota(),
@@ -127,6 +138,7 @@ impl MotFigures {
             idf1: id.idf1(),
             idp: id.idp(),
             idr: id.idr(),
+            hota,
         }
     }
 }
@@ -196,7 +208,7 @@ fn figures(
     selected: &[Vec<bool>],
     cfg: &EvalConfig,
 ) -> (TrackingFigures, Vec<OspaValue>) {
-    let (ospas, ospa2) = set_distances(grid, selected, cfg);
+    let (ospas, gospas, ospa2) = set_distances(grid, selected, cfg);
     let origin = layout
         .arrays
         .first()
@@ -206,9 +218,11 @@ fn figures(
     let dir_frames = grid.frames(selected, |a, b| angle_diff(az(b), az(a)).abs());
     let pos = clear_mot(&pos_frames, cfg.gate_m);
     let pos_id = identity_scores(&pos_frames, cfg.gate_m);
+    let pos_hota = hota(&pos_frames, cfg.gate_m);
     let az_gate = rad(cfg.azimuth_gate_deg);
     let dir = clear_mot(&dir_frames, az_gate);
     let dir_id = identity_scores(&dir_frames, az_gate);
+    let dir_hota = hota(&dir_frames, az_gate);
 
     let pos_pairs = matched_pairs(grid, &pos);
     let az_error = |(_, t, e): &(usize, Vec3, Vec3)| deg(angle_diff(az(e), az(t)).abs());
@@ -237,10 +251,11 @@ fn figures(
         track_count: pos.est_count,
         ospa: mean_ospa(&ospas),
         ospa2: mean_ospa(&ospa2),
-        position: MotFigures::new(&pos, &pos_id, cfg.gate_m, |v| v),
+        gospa: mean_gospa(&gospas),
+        position: MotFigures::new(&pos, (&pos_id, pos_hota), cfg.gate_m, |v| v),
         azimuth_error_deg: Summary::of(&az_errors),
         pixel_error_px,
-        direction: MotFigures::new(&dir, &dir_id, az_gate, deg),
+        direction: MotFigures::new(&dir, (&dir_id, dir_hota), az_gate, deg),
         direction_error_deg: Summary::of(&dir_errors),
         speaking,
         sources: per_source,
@@ -248,12 +263,13 @@ fn figures(
     (figures, ospa2)
 }
 
-/// OSPA at every step and OSPA(2) over the sliding window, against the selected truths.
+/// OSPA and GOSPA at every step and OSPA(2) over the sliding window, against the selected
+/// truths.
 fn set_distances(
     grid: &Grid,
     selected: &[Vec<bool>],
     cfg: &EvalConfig,
-) -> (Vec<OspaValue>, Vec<OspaValue>) {
+) -> (Vec<OspaValue>, Vec<GospaValue>, Vec<OspaValue>) {
     let params = OspaParams::new(cfg.ospa_cutoff_m, cfg.ospa_order);
     let steps = grid.times.len();
     let truth_samples: Vec<TrackSamples> = grid
@@ -263,13 +279,13 @@ fn set_distances(
         .map(|(s, sel)| s.iter().zip(sel).map(|(p, &on)| p.filter(|_| on)).collect())
         .collect();
     let est_samples = grid.est_samples();
-    let ospas: Vec<OspaValue> = (0..steps)
+    let (ospas, gospas): (Vec<OspaValue>, Vec<GospaValue>) = (0..steps)
         .map(|k| {
             let x: Vec<Vec3> = truth_samples.iter().filter_map(|s| s[k]).collect();
             let y: Vec<Vec3> = grid.est[k].iter().map(|e| e.1).collect();
-            ospa(&x, &y, params)
+            (ospa(&x, &y, params), gospa(&x, &y, params))
         })
-        .collect();
+        .unzip();
     let ospa2 = ospa2_series(
         &truth_samples,
         &est_samples,
@@ -277,7 +293,7 @@ fn set_distances(
         cfg.ospa2_window_steps,
         params,
     );
-    (ospas, ospa2)
+    (ospas, gospas, ospa2)
 }
 
 /// `(step, true position, estimated position)` of every correspondence of a matching.
