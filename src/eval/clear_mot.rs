@@ -21,6 +21,16 @@ pub struct MotFrame {
 }
 
 impl MotFrame {
+    /// A frame of objects and estimates on a line, `(id, x)` each: the metrics' test cases.
+    #[cfg(test)]
+    pub(crate) fn on_a_line(truth: &[(usize, f64)], est: &[(usize, f64)]) -> Self {
+        Self::new(
+            truth.iter().map(|p| p.0).collect(),
+            est.iter().map(|p| p.0).collect(),
+            |i, j| (truth[i].1 - est[j].1).abs(),
+        )
+    }
+
     /// A frame whose distances come from `dist(truth_index, est_index)`.
     pub fn new(truth: Vec<usize>, est: Vec<usize>, dist: impl FnMut(usize, usize) -> f64) -> Self {
         let d = CostMatrix::from_fn(truth.len(), est.len(), dist);
@@ -231,13 +241,7 @@ mod tests {
     fn frames(steps: &[(Objects, Objects)]) -> Vec<MotFrame> {
         steps
             .iter()
-            .map(|(t, e)| {
-                MotFrame::new(
-                    t.iter().map(|p| p.0).collect(),
-                    e.iter().map(|p| p.0).collect(),
-                    |i, j| (t[i].1 - e[j].1).abs(),
-                )
-            })
+            .map(|(t, e)| MotFrame::on_a_line(t, e))
             .collect()
     }
 

@@ -164,13 +164,8 @@ fn alpha(a: usize) -> f64 {
 mod tests {
     use super::*;
 
-    /// A frame of objects `(id, x)` and estimates `(id, x)` on a line.
     fn frame(t: &[(usize, f64)], e: &[(usize, f64)]) -> MotFrame {
-        MotFrame::new(
-            t.iter().map(|p| p.0).collect(),
-            e.iter().map(|p| p.0).collect(),
-            |i, j| (t[i].1 - e[j].1).abs(),
-        )
+        MotFrame::on_a_line(t, e)
     }
 
     fn close(a: f64, b: f64) -> bool {

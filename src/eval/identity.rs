@@ -108,11 +108,7 @@ mod tests {
     use super::*;
 
     fn frame(t: &[(usize, f64)], e: &[(usize, f64)]) -> MotFrame {
-        MotFrame::new(
-            t.iter().map(|p| p.0).collect(),
-            e.iter().map(|p| p.0).collect(),
-            |i, j| (t[i].1 - e[j].1).abs(),
-        )
+        MotFrame::on_a_line(t, e)
     }
 
     #[test]
