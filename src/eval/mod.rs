@@ -1,7 +1,8 @@
 //! Evaluation: scores an output folder against its scene's truth.
 //!
 //! The metrics are pure functions, each in its own module: optimal [`assignment`], [`ospa`] and
-//! OSPA(2), [`clear_mot`] and [`identity`] (IDF1), [`si_sdr`] and BSS Eval v3 ([`bss_eval`]). The
+//! OSPA(2), [`gospa`], [`clear_mot`], [`identity`] (IDF1) and [`hota`], [`si_sdr`] and BSS Eval v3
+//! ([`bss_eval`]). The
 //! report ([`evaluate`]) has one optional section per part of the output folder: the localiser's
 //! `measurements.jsonl` ([`measurements`]), the tracker's `tracks.jsonl` ([`tracks`]) and the
 //! separated `audio/<label>.wav` ([`audio`]); [`plots`] draws SVG figures of it.
