@@ -96,7 +96,7 @@ impl Stft {
 
 /// Streaming inverse STFT by least-squares weighted overlap-add.
 ///
-/// The synthesis window is w[t] / sum_k w^2[t + k hop], which reconstructs the input exactly for any
+/// The synthesis window is `w[t] / sum_k w^2[t + k hop]`, which reconstructs the input exactly for any
 /// hop shorter than the frame.
 pub struct Istft {
     geometry: FrameGeometry,

@@ -2,7 +2,7 @@
 
 use std::f64::consts::PI;
 
-/// Periodic Hann window of length `n`: w[t] = 0.5 - 0.5 cos(2 pi t / n).
+/// Periodic Hann window of length `n`: `w[t] = 0.5 - 0.5 cos(2 pi t / n)`.
 ///
 /// The periodic form (not the symmetric one) sums to a constant at 50 % overlap, which is what
 /// the STFT and the seed paper's framing use.

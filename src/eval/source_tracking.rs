@@ -31,7 +31,7 @@ pub const SPEAKING_THRESHOLD: f64 = 0.5;
 pub struct SpeakingScore {
     /// Matched steps at which the source talks.
     pub talking_steps: usize,
-    /// ... of which its track reads speaking (at least [`SPEAKING_THRESHOLD`]).
+    /// ... of which its track reads speaking (at least `SPEAKING_THRESHOLD`).
     pub detected: usize,
     /// Matched steps at which the source is silent but its track reads speaking.
     pub false_alarms: usize,

@@ -4,7 +4,7 @@
 //! wandering F0 (phrase declination, syllable accents, per-period jitter and shimmer) and pulsed
 //! aspiration noise, filtered by a cascade of second-order formant resonators: F1-F4 glide
 //! between vowel targets, F5 and F6 stay fixed (they keep the upper spectrum from falling off).
-//! Syllables (3-6 per second, see [`super::syllables`]) carry the amplitude envelope and may
+//! Syllables (3-6 per second, see `syllables`) carry the amplitude envelope and may
 //! start with a fricative (band-pass noise), a stop (closure, burst, aspiration), an aspirate or
 //! a nasal murmur, and may end with a fricative. Phrases are the intervals given; outside them
 //! the signal is exactly zero, so the phrases are where the talker is active.

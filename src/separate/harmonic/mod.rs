@@ -294,8 +294,8 @@ impl Harmonic {
     /// weight `reliability[k]` (0 ignores it), preferring F0s inside the label's `register`.
     /// `scratch` holds the interpolation table.
     ///
-    /// Coarse to fine: the comb is scored on every [`COARSE`]th candidate with the harmonics up
-    /// to [`COARSE_TOP_HZ`], then with all of them on the fine grid around the [`REFINED`] best
+    /// Coarse to fine: the comb is scored on every `COARSE`th candidate with the harmonics up
+    /// to `COARSE_TOP_HZ`, then with all of them on the fine grid around the `REFINED` best
     /// coarse ones (a fraction of the exhaustive search's work; the selection score varies
     /// smoothly enough over a coarse step that the exhaustive search's winner lies next to one
     /// of the best coarse candidates).
