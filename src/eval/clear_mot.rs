@@ -42,6 +42,17 @@ impl MotFrame {
     }
 }
 
+/// Dense indices, in order of first appearance, of the ids in `ids` (the true objects' or the
+/// estimates' ids over a sequence of frames).
+pub(crate) fn dense_ids(ids: impl Iterator<Item = usize>) -> BTreeMap<usize, usize> {
+    let mut map = BTreeMap::new();
+    for id in ids {
+        let n = map.len();
+        map.entry(id).or_insert(n);
+    }
+    map
+}
+
 /// A correspondence between a true object and an estimate in one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Match {

@@ -32,20 +32,18 @@ pub fn gospa(x: &[Vec3], y: &[Vec3], p: OspaParams) -> GospaValue {
     let (m, n) = (x.len(), y.len());
     // A pair at c or farther costs as much as a miss plus a false object, so the optimal
     // assignment over min(d, c)^p, with the unassigned charged c^p / 2 each, is GOSPA^p.
-    let costs = CostMatrix::from_fn(m, n, |i, j| {
-        let d = (x[i] - y[j]).norm();
-        if d.is_nan() { c } else { d.min(c) }.powf(order)
-    });
+    let costs = CostMatrix::from_fn(m, n, |i, j| p.capped_cost((x[i] - y[j]).norm()));
+    let cp = c.powf(order);
     let mut loc = 0.0;
     let mut assigned = 0usize;
     for (i, j) in assign(&costs).pairs {
         let d = costs.at(i, j);
-        if d < c.powf(order) {
+        if d < cp {
             loc += d;
             assigned += 1;
         }
     }
-    let half = c.powf(order) / 2.0;
+    let half = cp / 2.0;
     let (missed, false_objects) = (half * (m - assigned) as f64, half * (n - assigned) as f64);
     let root = |v: f64| v.powf(1.0 / order);
     GospaValue {

@@ -13,12 +13,10 @@
 //! by each pair's global alignment score, as in the reference implementation (TrackEval), so a
 //! frame prefers the estimate that follows the object over the sequence.
 
-use std::collections::BTreeMap;
-
 use serde::{Deserialize, Serialize};
 
 use super::assignment::{CostMatrix, assign};
-use super::clear_mot::MotFrame;
+use super::clear_mot::{MotFrame, dense_ids};
 
 /// Localisation thresholds alpha: 0.05 to 0.95 in steps of 0.05.
 const ALPHAS: usize = 19;
@@ -40,21 +38,11 @@ pub struct HotaScores {
     pub loca: f64,
 }
 
-/// Dense indices of the ids that appear in `ids`.
-fn index_of(ids: impl Iterator<Item = usize>) -> BTreeMap<usize, usize> {
-    let mut map = BTreeMap::new();
-    for id in ids {
-        let n = map.len();
-        map.entry(id).or_insert(n);
-    }
-    map
-}
-
 /// HOTA of `frames`, whose distances reach similarity 0 at `scale` (> 0). `None` when the
 /// frames hold neither true objects nor estimates.
 pub fn hota(frames: &[MotFrame], scale: f64) -> Option<HotaScores> {
-    let truth_ids = index_of(frames.iter().flat_map(|f| f.truth.iter().copied()));
-    let est_ids = index_of(frames.iter().flat_map(|f| f.est.iter().copied()));
+    let truth_ids = dense_ids(frames.iter().flat_map(|f| f.truth.iter().copied()));
+    let est_ids = dense_ids(frames.iter().flat_map(|f| f.est.iter().copied()));
     let (nt, ne) = (truth_ids.len(), est_ids.len());
     if nt == 0 && ne == 0 {
         return None;
@@ -67,12 +55,15 @@ pub fn hota(frames: &[MotFrame], scale: f64) -> Option<HotaScores> {
             (1.0 - d / scale).max(0.0)
         }
     };
+    let sims: Vec<CostMatrix> = frames
+        .iter()
+        .map(|f| CostMatrix::from_fn(f.truth.len(), f.est.len(), |i, j| similarity(f, i, j)))
+        .collect();
     // Pass 1: how much each (object, estimate) pair is matched over the sequence, by the
     // Jaccard-normalised similarity of each frame.
     let mut potential = vec![0.0; nt * ne];
     let (mut truth_count, mut est_count) = (vec![0usize; nt], vec![0usize; ne]);
-    for f in frames {
-        let s = CostMatrix::from_fn(f.truth.len(), f.est.len(), |i, j| similarity(f, i, j));
+    for (f, s) in frames.iter().zip(&sims) {
         let row_sum: Vec<f64> = (0..s.rows())
             .map(|i| (0..s.cols()).map(|j| s.at(i, j)).sum())
             .collect();
@@ -102,16 +93,16 @@ pub fn hota(frames: &[MotFrame], scale: f64) -> Option<HotaScores> {
     let mut tp = [0usize; ALPHAS];
     let mut loc = [0.0f64; ALPHAS];
     let mut matched = vec![[0usize; ALPHAS]; nt * ne];
-    for f in frames {
+    for (f, sim) in frames.iter().zip(&sims) {
         let (ti, ej): (Vec<usize>, Vec<usize>) = (
             f.truth.iter().map(|t| truth_ids[t]).collect(),
             f.est.iter().map(|e| est_ids[e]).collect(),
         );
         let cost = CostMatrix::from_fn(ti.len(), ej.len(), |i, j| {
-            -global[ti[i] * ne + ej[j]] * similarity(f, i, j)
+            -global[ti[i] * ne + ej[j]] * sim.at(i, j)
         });
         for (i, j) in assign(&cost).pairs {
-            let s = similarity(f, i, j);
+            let s = sim.at(i, j);
             for a in 0..ALPHAS {
                 if s >= alpha(a) - EPS {
                     tp[a] += 1;

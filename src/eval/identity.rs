@@ -9,7 +9,7 @@
 use std::collections::BTreeMap;
 
 use super::assignment::{CostMatrix, assign};
-use super::clear_mot::MotFrame;
+use super::clear_mot::{MotFrame, dense_ids};
 
 /// Identity scores.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -47,21 +47,10 @@ fn ratio(a: usize, b: usize) -> Option<f64> {
 
 /// Identity scores of `frames` with distance gate `gate`.
 pub fn identity_scores(frames: &[MotFrame], gate: f64) -> IdentityScores {
-    let mut truth_ids: BTreeMap<usize, usize> = BTreeMap::new();
-    let mut est_ids: BTreeMap<usize, usize> = BTreeMap::new();
-    let (mut truth_total, mut est_total) = (0usize, 0usize);
-    for f in frames {
-        for &t in &f.truth {
-            let n = truth_ids.len();
-            truth_ids.entry(t).or_insert(n);
-        }
-        for &e in &f.est {
-            let n = est_ids.len();
-            est_ids.entry(e).or_insert(n);
-        }
-        truth_total += f.truth.len();
-        est_total += f.est.len();
-    }
+    let truth_ids = dense_ids(frames.iter().flat_map(|f| f.truth.iter().copied()));
+    let est_ids = dense_ids(frames.iter().flat_map(|f| f.est.iter().copied()));
+    let truth_total: usize = frames.iter().map(|f| f.truth.len()).sum();
+    let est_total: usize = frames.iter().map(|f| f.est.len()).sum();
     let (nt, ne) = (truth_ids.len(), est_ids.len());
     let mut shared = vec![0usize; nt * ne];
     for f in frames {

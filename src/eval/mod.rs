@@ -2,10 +2,10 @@
 //!
 //! The metrics are pure functions, each in its own module: optimal [`assignment`], [`ospa`] and
 //! OSPA(2), [`gospa`], [`clear_mot`], [`identity`] (IDF1) and [`hota`], [`si_sdr`] and BSS Eval v3
-//! ([`bss_eval`]). The
-//! report ([`evaluate`]) has one optional section per part of the output folder: the localiser's
-//! `measurements.jsonl` ([`measurements`]), the tracker's `tracks.jsonl` ([`tracks`]) and the
-//! separated `audio/<label>.wav` ([`audio`]); [`plots`] draws SVG figures of it.
+//! ([`bss_eval`]). The report ([`evaluate`]) has one optional section per part of the output
+//! folder: the localiser's `measurements.jsonl` ([`measurements`]), the tracker's `tracks.jsonl`
+//! ([`tracks`]) and the separated `audio/<label>.wav` ([`audio`]); [`plots`] draws SVG figures of
+//! it.
 
 pub mod assignment;
 pub mod audio;

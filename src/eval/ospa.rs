@@ -33,6 +33,16 @@ impl OspaParams {
     pub fn new(cutoff: f64, order: f64) -> Self {
         Self { cutoff, order }
     }
+
+    /// A pair's cost `min(d, c)^p`; a NaN distance means "unknown": the worst admissible value.
+    pub(crate) fn capped_cost(&self, d: f64) -> f64 {
+        let d = if d.is_nan() {
+            self.cutoff
+        } else {
+            d.min(self.cutoff)
+        };
+        d.max(0.0).powf(self.order)
+    }
 }
 
 /// OSPA between two sets whose base distances are `dist(i, j)` for `i < m`, `j < n`.
@@ -53,12 +63,7 @@ pub fn ospa_with(
             cardinality: c,
         };
     }
-    let costs = CostMatrix::from_fn(m, n, |i, j| {
-        let d = dist(i, j);
-        // A NaN distance means "unknown": the worst admissible value.
-        let d = if d.is_nan() { c } else { d.min(c) };
-        d.max(0.0).powf(order)
-    });
+    let costs = CostMatrix::from_fn(m, n, |i, j| p.capped_cost(dist(i, j)));
     let loc_sum = assign(&costs).cost;
     let big = m.max(n) as f64;
     let card_sum = c.powf(order) * (m.abs_diff(n)) as f64;

@@ -1,7 +1,7 @@
 //! Scores of the tracker's output (`tracks.jsonl`): at each line's time the estimated set against
-//! the true positions of the sources present then (OSPA, GOSPA, OSPA(2), CLEAR MOT, IDF1, HOTA), the same
-//! figures in direction space (azimuth from the first array's centroid) and in each camera's
-//! image, and per source the track initiation delay and the labels that carried it.
+//! the true positions of the sources present then (OSPA, GOSPA, OSPA(2), CLEAR MOT, IDF1, HOTA),
+//! the same figures in direction space (azimuth from the first array's centroid) and in each
+//! camera's image, and per source the track initiation delay and the labels that carried it.
 //!
 //! The figures are computed twice: against every source present (`all`), and against the
 //! "audible" sources only: present and having spoken within the last `audible_hold_s` seconds,

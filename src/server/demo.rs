@@ -2,10 +2,10 @@
 //! simulator, streamed into an ordinary session in real time and looped, so a fresh install
 //! shows moving tracks and separated voices in the dashboard at once.
 //!
-//! The feeder submits through [`SessionHandle::submit`](crate::server::session::Session::submit), the path the WebSocket and Zenoh
-//! transports use after decoding, so the demo session runs exactly as a client-fed one. Its id
-//! and token are published on the registry ([`Registry::set_demo`]) for the dashboard's
-//! `GET /dashboard/api/demo`, which answers whoever may list sessions.
+//! The feeder submits through [`SessionHandle::submit`](crate::server::session::Session::submit),
+//! the path the WebSocket and Zenoh transports use after decoding, so the demo session runs exactly
+//! as a client-fed one. Its id and token are published on the registry ([`Registry::set_demo`]) for
+//! the dashboard's `GET /dashboard/api/demo`, which answers whoever may list sessions.
 
 use std::sync::Arc;
 use std::time::Duration;
