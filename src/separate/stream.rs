@@ -2,7 +2,7 @@
 
 use super::blocking::BlockingBank;
 use super::config::BeamformerKind;
-use super::harmonic::{Register, Segment};
+use super::harmonic::{PitchTrack, Register, Segment};
 use super::lifecycle::Envelope;
 use super::null_steering::NullSteering;
 use super::postfilter::PostState;
@@ -59,6 +59,8 @@ pub(super) struct Stream {
     pub constraints_changed: bool,
     /// The label's pitch register (harmonic grouping).
     pub register: Register,
+    /// The label's F0 track over frames (harmonic grouping).
+    pub pitch_track: PitchTrack,
     /// The label's smoothed share of the fitted direct-path power (harmonic grouping's
     /// activity gate); a new label starts as talking.
     pub activity: f64,
@@ -100,6 +102,7 @@ impl Stream {
             steering_changed: true,
             constraints_changed: true,
             register: Register::default(),
+            pitch_track: PitchTrack::default(),
             activity: 1.0,
             segment: Segment::default(),
             held: false,

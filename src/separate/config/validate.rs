@@ -145,6 +145,13 @@ impl HarmonicConfig {
             3600.0,
         )?;
         in_range("register_ownership", self.register_ownership, 0.0, 10.0)?;
+        in_range(
+            "track_semitones_per_s",
+            self.track_semitones_per_s,
+            0.0,
+            1000.0,
+        )?;
+        in_range("track_jump", self.track_jump, 0.0, 100.0)?;
         unit_interval("activity", self.activity_low, self.activity_high)?;
         in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)?;
         in_range("activity_hold", self.activity_hold, 0.0, 1.0)?;

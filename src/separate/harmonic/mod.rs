@@ -27,11 +27,14 @@ use comb::{COARSE, Comb, REFINED, Score, hann_power};
 mod activity;
 mod comb;
 mod fit;
+mod track;
 
 pub use activity::Segment;
 #[cfg(test)]
 pub(crate) use fit::tests as fit_signals;
 pub use fit::{HarmonicFit, hann_transform};
+pub use track::PitchTrack;
+use track::Transition;
 
 /// Relative step of the F0 candidate grid (0.5 %: the 20th harmonic moves by a tenth of its
 /// frequency's bin spacing at 2 kHz and 16 kHz / 1024). Half of it, with the analysis read
@@ -125,6 +128,8 @@ pub struct Harmonic {
     salience_whitening: f64,
     /// Half-width (bins) of the band the local level is measured over.
     whitening_half_width: usize,
+    /// The pitch track's transition; `None`: each frame's F0 is searched on its own.
+    transition: Option<Transition>,
 }
 
 impl Harmonic {
@@ -169,6 +174,11 @@ impl Harmonic {
             whitening_half_width: (0.5 * cfg.whitening_bandwidth_hz / hz_per_bin.max(1e-12))
                 .round()
                 .max(0.0) as usize,
+            transition: Transition::new(
+                cfg.track_semitones_per_s * std::f64::consts::LN_2 / 12.0 / frames_per_s.max(1e-9),
+                cfg.track_jump,
+                GRID_STEP.ln_1p(),
+            ),
         }
     }
 
@@ -310,8 +320,25 @@ impl Harmonic {
             return Pitch::default();
         };
         let prefer = self.preference(register);
+        let mut best = (0.0, Score::default(), 0.0);
+        for range in self.refined_ranges(&comb, &prefer) {
+            comb.best(&self.candidates[range], &prefer, &mut best);
+        }
+        let mut p = self.pitch_of(best.0, best.1);
+        if p.f0 > 0.0 {
+            p.register_fit = power(prefer(p.f0), self.register_ownership);
+        }
+        p
+    }
+
+    /// The fine-grid ranges of candidates around the `REFINED` best coarse candidates by
+    /// selection score times `prefer` (read up to `COARSE_TOP_HZ`), best first.
+    fn refined_ranges(
+        &self,
+        comb: &Comb,
+        prefer: impl Fn(f64) -> f64,
+    ) -> impl Iterator<Item = std::ops::Range<usize>> {
         let n = self.candidates.len();
-        // Best coarse candidates by selection score, best first.
         let mut top = [(usize::MAX, 0.0f64); REFINED];
         for i in (0..n).step_by(COARSE) {
             let f0 = self.candidates[i];
@@ -321,17 +348,9 @@ impl Harmonic {
                 top[at] = (i, select);
             }
         }
-        let mut best = (0.0, Score::default(), 0.0);
-        for &(centre, _) in top.iter().filter(|t| t.0 != usize::MAX) {
-            let lo = centre.saturating_sub(COARSE - 1);
-            let hi = (centre + COARSE).min(n);
-            comb.best(&self.candidates[lo..hi], &prefer, &mut best);
-        }
-        let mut p = self.pitch_of(best.0, best.1);
-        if p.f0 > 0.0 {
-            p.register_fit = power(prefer(p.f0), self.register_ownership);
-        }
-        p
+        top.into_iter()
+            .filter(|t| t.0 != usize::MAX)
+            .map(move |(centre, _)| centre.saturating_sub(COARSE - 1)..(centre + COARSE).min(n))
     }
 
     /// The pitch of `mag` (read as [`Harmonic::pitch`] reads it) when its F0 and voicing are

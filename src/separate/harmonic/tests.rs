@@ -6,7 +6,7 @@ use crate::dsp::hann_periodic;
 const FS: f64 = 16000.0;
 const N: usize = 1024;
 
-fn harmonic() -> Harmonic {
+pub(super) fn harmonic() -> Harmonic {
     Harmonic::new(
         &HarmonicConfig::default(),
         FS / N as f64,
@@ -15,7 +15,7 @@ fn harmonic() -> Harmonic {
 }
 
 /// Magnitude spectrum of one Hann-windowed frame of `x`.
-fn spectrum(x: &[f64]) -> Vec<f64> {
+pub(super) fn spectrum(x: &[f64]) -> Vec<f64> {
     let w = hann_periodic(N);
     (0..=N / 2)
         .map(|k| {
@@ -30,14 +30,14 @@ fn spectrum(x: &[f64]) -> Vec<f64> {
 }
 
 /// The next value in [-0.5, 0.5) of a linear congruential generator seeded with `s`.
-fn uniform(s: &mut u64) -> f64 {
+pub(super) fn uniform(s: &mut u64) -> f64 {
     *s = s
         .wrapping_mul(6364136223846793005)
         .wrapping_add(1442695040888963407);
     (*s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
 }
 
-fn voiced(f0: f64, amp: f64) -> Vec<f64> {
+pub(super) fn voiced(f0: f64, amp: f64) -> Vec<f64> {
     (0..N)
         .map(|t| {
             let t = t as f64 / FS;

@@ -156,9 +156,13 @@ impl Separator {
                     .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table)
             }
             None => {
-                let mut p =
-                    self.harmonic
-                        .pitch(&w.mag, &w.reliability, &s.register, &mut w.pitch_table);
+                let mut p = self.harmonic.next_pitch(
+                    &w.mag,
+                    &w.reliability,
+                    &s.register,
+                    &mut s.pitch_track,
+                    &mut w.pitch_table,
+                );
                 let held = self.harmonic.hold(&mut s.segment, &p, gate);
                 s.held = held > gate;
                 p.voicing *= held;
