@@ -68,6 +68,9 @@ pub(super) struct Stream {
     pub segment: Segment,
     /// This frame the hold kept the gate open wider than the activity alone would.
     pub held: bool,
+    /// The voicing the label's comb read last frame, before its activity gate (1 at birth: a
+    /// new label counts as audible).
+    pub comb_voicing: f64,
     /// Smoothed fitted power per bin below the harmonic fit's top (the fit's memory).
     pub fit_memory: Vec<f64>,
     /// This frame's known pitch from the target (oracle runs), used instead of the estimate.
@@ -106,6 +109,7 @@ impl Stream {
             activity: 1.0,
             segment: Segment::default(),
             held: false,
+            comb_voicing: 1.0,
             fit_memory: Vec::new(),
             known_pitch: None,
         }

@@ -152,6 +152,12 @@ impl HarmonicConfig {
             1000.0,
         )?;
         in_range("track_jump", self.track_jump, 0.0, 100.0)?;
+        in_range(
+            "competitor_audibility_exponent",
+            self.competitor_audibility_exponent,
+            0.0,
+            16.0,
+        )?;
         unit_interval("activity", self.activity_low, self.activity_high)?;
         in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)?;
         in_range("activity_hold", self.activity_hold, 0.0, 1.0)?;

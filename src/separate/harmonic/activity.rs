@@ -1,7 +1,8 @@
 //! Whether a label is talking: the activity gate on its voicing (its share of the direct-path
-//! power above 1 kHz) and the hold that keeps a voiced segment whole through the gate.
+//! power above 1 kHz), the hold that keeps a voiced segment whole through the gate, and how
+//! audible a label is as another's competitor.
 
-use super::{Harmonic, Pitch};
+use super::{Harmonic, Pitch, power};
 
 /// A label's voiced segment as the activity hold follows it.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -18,14 +19,31 @@ impl Harmonic {
     /// Folds this frame's direct-power `share` of a label into its smoothed `activity` and
     /// returns the factor, in [0, 1], its estimated voicing is scaled by (1 with the gate off).
     pub fn activity_gate(&self, activity: &mut f64, share: f64) -> f64 {
-        let Some((low, high)) = self.activity else {
-            return 1.0;
-        };
-        if share.is_finite() {
+        if share.is_finite() && self.activity.is_some() {
             let a = self.activity_smoothing;
             *activity = a * *activity + (1.0 - a) * share.clamp(0.0, 1.0);
         }
-        ((*activity - low) / (high - low)).clamp(0.0, 1.0)
+        self.gate_of(*activity)
+    }
+
+    /// The gate a label's smoothed `activity` opens, in [0, 1] (1 with the gate off).
+    pub fn gate_of(&self, activity: f64) -> f64 {
+        let Some((low, high)) = self.activity else {
+            return 1.0;
+        };
+        ((activity - low) / (high - low)).clamp(0.0, 1.0)
+    }
+
+    /// How much a label counts as a competitor where another label reads its F0, in [0, 1],
+    /// from its smoothed `activity` and the voicing its comb read last frame (see
+    /// `competitor_audibility_exponent`; 1 with the exponent 0).
+    pub fn audibility(&self, activity: f64, comb_voicing: f64) -> f64 {
+        let a = self.gate_of(activity).max(comb_voicing);
+        if a.is_finite() {
+            power(a.clamp(0.0, 1.0), self.audibility_exponent)
+        } else {
+            1.0
+        }
     }
 
     /// The gate that applies to this frame's estimated `pitch` given the activity gate's
@@ -59,5 +77,31 @@ impl Harmonic {
         }
         segment.f0 = if continues || opens { pitch.f0 } else { 0.0 };
         if continues { 1.0 } else { gate }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{FS, N, harmonic};
+    use super::*;
+    use crate::separate::config::HarmonicConfig;
+
+    #[test]
+    fn audibility_is_the_louder_of_gate_and_comb_to_its_exponent() {
+        let h = harmonic();
+        // Default gate ramp 0.05..0.2, exponent 2.
+        assert_eq!(h.audibility(0.0, 0.0), 0.0);
+        assert!((h.audibility(0.125, 0.0) - 0.25).abs() < 1e-12);
+        assert!((h.audibility(0.0, 0.5) - 0.25).abs() < 1e-12);
+        assert_eq!(h.audibility(1.0, 0.0), 1.0);
+        // A dark vowel that shuts its gate still counts through its comb.
+        assert_eq!(h.audibility(0.0, 1.0), 1.0);
+        // Exponent 0 counts every competitor fully.
+        let cfg = HarmonicConfig {
+            competitor_audibility_exponent: 0.0,
+            ..HarmonicConfig::default()
+        };
+        let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+        assert_eq!(off.audibility(0.0, 0.0), 1.0);
     }
 }

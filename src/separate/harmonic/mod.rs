@@ -130,6 +130,8 @@ pub struct Harmonic {
     whitening_half_width: usize,
     /// The pitch track's transition; `None`: each frame's F0 is searched on its own.
     transition: Option<Transition>,
+    /// Exponent of a competitor's audibility in the F0 analysis's reliability.
+    audibility_exponent: f64,
 }
 
 impl Harmonic {
@@ -174,6 +176,7 @@ impl Harmonic {
             whitening_half_width: (0.5 * cfg.whitening_bandwidth_hz / hz_per_bin.max(1e-12))
                 .round()
                 .max(0.0) as usize,
+            audibility_exponent: cfg.competitor_audibility_exponent,
             transition: Transition::new(
                 cfg.track_semitones_per_s * std::f64::consts::LN_2 / 12.0 / frames_per_s.max(1e-9),
                 cfg.track_jump,

@@ -3,8 +3,8 @@
 use super::*;
 use crate::dsp::hann_periodic;
 
-const FS: f64 = 16000.0;
-const N: usize = 1024;
+pub(super) const FS: f64 = 16000.0;
+pub(super) const N: usize = 1024;
 
 pub(super) fn harmonic() -> Harmonic {
     Harmonic::new(

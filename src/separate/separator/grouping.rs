@@ -23,6 +23,12 @@ impl Separator {
         let y = &w.y;
         self.harmonic
             .whitening(|k| y[k * ch + rf].norm_sqr(), self.k_lo, top, &mut w.level);
+        w.audibility.clear();
+        w.audibility.extend(
+            self.streams
+                .iter()
+                .map(|s| self.harmonic.audibility(s.activity, s.comb_voicing)),
+        );
         for i in 0..n {
             let p = self.stream_pitch(i, to_ref, top);
             self.work.pitch.push(p);
@@ -128,6 +134,7 @@ impl Separator {
         let n = self.streams.len();
         let (ch, rf) = (self.channels, self.reference);
         self.streams[i].held = false;
+        let floor = self.harmonic.unresolved_floor();
         let w = &mut self.work;
         if w.priors[i] <= 0.0 {
             return Pitch::default();
@@ -140,7 +147,8 @@ impl Separator {
                 w.frame_bf[k * n + i]
             };
             w.mag[k] = g * v.norm_sqr().sqrt();
-            let r = 1.0 - w.frame_unresolved[k * n + i];
+            let pairs = &w.pair_unresolved[k * n * n..(k + 1) * n * n];
+            let r = 1.0 - audible_unresolved(pairs, i, &w.audibility, &w.priors, floor);
             w.reliability[k] = r * r;
         }
         let s = &mut self.streams[i];
@@ -152,8 +160,11 @@ impl Separator {
         };
         let mut p = match s.known_pitch {
             Some(known) => {
-                self.harmonic
-                    .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table)
+                let p =
+                    self.harmonic
+                        .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table);
+                s.comb_voicing = p.voicing;
+                p
             }
             None => {
                 let mut p = self.harmonic.next_pitch(
@@ -163,6 +174,7 @@ impl Separator {
                     &mut s.pitch_track,
                     &mut w.pitch_table,
                 );
+                s.comb_voicing = p.voicing;
                 let held = self.harmonic.hold(&mut s.segment, &p, gate);
                 s.held = held > gate;
                 p.voicing *= held;
@@ -179,6 +191,23 @@ impl Separator {
         );
         p
     }
+}
+
+/// How unresolved stream `i`'s claim on a bin is where it reads its F0: as its least resolved
+/// competitor (`pairs`: the bin's stream x competitor values) with a prior, each competitor's
+/// value weighed by its `audibility`, and at least `floor`.
+fn audible_unresolved(
+    pairs: &[f64],
+    i: usize,
+    audibility: &[f64],
+    priors: &[f64],
+    floor: f64,
+) -> f64 {
+    let n = priors.len();
+    (0..n)
+        .filter(|&j| j != i && priors[j] > 0.0)
+        .map(|j| pairs[i * n + j] * audibility.get(j).copied().unwrap_or(1.0))
+        .fold(floor, f64::max)
 }
 
 /// A stream's memory at a bin counts against the strongest stream's memory there plus this
@@ -243,6 +272,32 @@ mod tests {
 
     fn stream(id: u64) -> Stream {
         Stream::new(Label::new(id, 0), Vec3::new(1.0, 0.0, 0.0), false, 1)
+    }
+
+    #[test]
+    fn a_silent_competitor_leaves_the_shared_bins_reliable() {
+        // Three streams: 0 and 1 unresolved against each other (0.9), 2 resolved from both.
+        let n = 3;
+        let mut pairs = vec![0.0; n * n];
+        pairs[1] = 0.9;
+        pairs[n] = 0.9;
+        pairs[2] = 0.1;
+        let priors = [1.0, 1.0, 1.0];
+        // Every competitor audible: the least resolved one counts whole.
+        let all = [1.0, 1.0, 1.0];
+        assert_eq!(audible_unresolved(&pairs, 0, &all, &priors, 0.0), 0.9);
+        // Stream 1 silent: stream 0's bin is as unresolved as against stream 2 only.
+        let silent = [1.0, 0.0, 1.0];
+        assert_eq!(audible_unresolved(&pairs, 0, &silent, &priors, 0.0), 0.1);
+        // Stream 1 half audible, and the floor.
+        let half = [1.0, 0.25, 0.0];
+        assert!((audible_unresolved(&pairs, 0, &half, &priors, 0.0) - 0.225).abs() < 1e-12);
+        assert_eq!(audible_unresolved(&pairs, 0, &silent, &priors, 0.3), 0.3);
+        // A competitor without a prior (faded out) does not count at all.
+        assert_eq!(
+            audible_unresolved(&pairs, 0, &all, &[1.0, 0.0, 1.0], 0.0),
+            0.1
+        );
     }
 
     #[test]

@@ -89,6 +89,8 @@ struct Work {
     frame_bf: Vec<Complex>,
     /// How unresolved each stream's claim is per bin (harmonic grouping), bin-major.
     frame_unresolved: Vec<f64>,
+    /// Per stream: how much it counts as a competitor where another stream reads its F0.
+    audibility: Vec<f64>,
     /// Per-bin scratch of the F0 analysis: a stream's magnitude and the bins' reliability.
     mag: Vec<f64>,
     reliability: Vec<f64>,
