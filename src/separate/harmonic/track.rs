@@ -12,12 +12,6 @@ use super::{Harmonic, Pitch, Register, power};
 /// falling: a comb that reads nothing there is unlikely, not impossible.
 const EVIDENCE_FLOOR: f64 = 1e-3;
 
-/// Paths followed from frame to frame besides the frame's own best candidates: the best one,
-/// whose end is the F0 read. Following the three best (the runners-up a voice may turn out to
-/// continue) measured the same within 0.03 dB (paper-linear6 seeds 1-24 +7.52 against +7.51 dB
-/// SI-SDRi, recorded speech +5.08 against +5.07 dB) at 0.01 ms more per hop.
-const PATHS: usize = 1;
-
 /// One label's pitch track: the forward scores over the F0 candidates.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PitchTrack {
@@ -25,9 +19,12 @@ pub struct PitchTrack {
     score: Vec<f64>,
     /// Voicing of the last frame's best comb: how strongly continuity binds the next frame.
     voicing: f64,
-    /// The ends (candidate indices) of the last frame's best paths, best first: the local
-    /// maxima of `score`.
-    ends: [Option<usize>; PATHS],
+    /// The last frame's pitch (candidate index), where the best path ends. Besides the
+    /// frame's own best candidates only the path from there is followed: following the three
+    /// best paths' ends (local maxima of `score`) measured the same within 0.03 dB
+    /// (paper-linear6 seeds 1-24 +7.52 against +7.51 dB SI-SDRi, recorded speech +5.08 against
+    /// +5.07 dB) at 0.01 ms more per hop.
+    last: Option<usize>,
     /// This frame's comb scores per candidate (scratch).
     combs: Vec<Score>,
     /// Next forward scores (scratch).
@@ -64,8 +61,15 @@ impl Transition {
 }
 
 impl Harmonic {
-    /// The label's pitch this frame: followed along its `track` when tracking is on (see
-    /// [`PitchTrack`]), else searched in this frame alone ([`Harmonic::pitch`]).
+    /// The label's pitch this frame: the pitch of `mag` (read as [`Harmonic::pitch`] reads
+    /// it) as the continuation of the label's `track`, or searched in this frame alone
+    /// ([`Harmonic::pitch`]) with tracking off. A candidate's evidence is the log of its selection score (times the
+    /// register's preference) relative to the frame's best; a path's score adds its frames'
+    /// evidence less `transition`'s cost of each change of F0, scaled by the voicing of the
+    /// weaker of the two frames (an unvoiced frame binds nothing). The pitch is the candidate
+    /// that ends the best path. Scored are the candidates [`Harmonic::pitch`] refines and those
+    /// a path from the last frame's pitch can reach without the jump cost; any other
+    /// continues no path.
     pub fn next_pitch(
         &self,
         mag: &[f64],
@@ -74,29 +78,9 @@ impl Harmonic {
         track: &mut PitchTrack,
         scratch: &mut Vec<[f64; 4]>,
     ) -> Pitch {
-        match &self.transition {
-            Some(t) => self.track_pitch(t, mag, reliability, register, track, scratch),
-            None => self.pitch(mag, reliability, register, scratch),
-        }
-    }
-
-    /// The pitch of `mag` (read as [`Harmonic::pitch`] reads it) as the continuation of the
-    /// label's `track`. A candidate's evidence is the log of its selection score (times the
-    /// register's preference) relative to the frame's best; a path's score adds its frames'
-    /// evidence less `transition`'s cost of each change of F0, scaled by the voicing of the
-    /// weaker of the two frames (an unvoiced frame binds nothing). The pitch is the candidate
-    /// that ends the best path. Scored are the candidates [`Harmonic::pitch`] refines and those
-    /// a path from the last frame's pitch can reach without the jump cost; any other
-    /// continues no path.
-    pub(super) fn track_pitch(
-        &self,
-        transition: &Transition,
-        mag: &[f64],
-        reliability: &[f64],
-        register: &Register,
-        track: &mut PitchTrack,
-        scratch: &mut Vec<[f64; 4]>,
-    ) -> Pitch {
+        let Some(transition) = &self.transition else {
+            return self.pitch(mag, reliability, register, scratch);
+        };
         let Some(comb) = Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) else {
             return Pitch::default();
         };
@@ -105,13 +89,11 @@ impl Harmonic {
         let reach = transition.cost.len() - 1;
         track.combs.clear();
         track.combs.resize(n, (0.0, 0.0, f64::NAN));
-        let around_ends = track
-            .ends
-            .into_iter()
-            .flatten()
+        let around_last = track
+            .last
             .filter(|&j| j < n)
             .map(|j| j.saturating_sub(reach)..(j + reach + 1).min(n));
-        for range in self.refined_ranges(&comb, &prefer).chain(around_ends) {
+        for range in self.refined_ranges(&comb, &prefer).chain(around_last) {
             for j in range {
                 if track.combs[j].2.is_nan() {
                     let f = self.candidates[j];
@@ -124,7 +106,7 @@ impl Harmonic {
         if !(best > 0.0 && best.is_finite()) {
             // Nothing harmonic: the frame says nothing, and the next binds nothing.
             track.voicing = 0.0;
-            track.ends = [None; PATHS];
+            track.last = None;
             return Pitch::default();
         }
         let voicing = self
@@ -155,31 +137,13 @@ impl Harmonic {
         for (s, v) in track.score.iter_mut().zip(&track.next) {
             *s = v - top;
         }
-        track.ends = path_ends(&track.score);
-        debug_assert_eq!(track.ends[0], Some(at));
+        track.last = Some(at);
         let mut p = self.pitch_of(self.candidates[at], track.combs[at]);
         if p.f0 > 0.0 {
             p.register_fit = power(prefer(p.f0), self.register_ownership);
         }
         p
     }
-}
-
-/// The `PATHS` largest local maxima of `score` (finite, at least each neighbour's), best first.
-fn path_ends(score: &[f64]) -> [Option<usize>; PATHS] {
-    let mut ends = [(None, f64::NEG_INFINITY); PATHS];
-    for (j, &v) in score.iter().enumerate() {
-        let left = j.checked_sub(1).map_or(f64::NEG_INFINITY, |i| score[i]);
-        let right = score.get(j + 1).copied().unwrap_or(f64::NEG_INFINITY);
-        if !(v.is_finite() && v > left && v >= right) {
-            continue;
-        }
-        if let Some(at) = ends.iter().position(|e| v > e.1) {
-            ends[at..].rotate_right(1);
-            ends[at] = (Some(j), v);
-        }
-    }
-    ends.map(|e| e.0)
 }
 
 /// Index and value of the largest of `values` (the first of equals; 0 and -inf when empty).

@@ -308,13 +308,11 @@ impl Separator {
             // the largest of the pairs'.
             let floor = self.harmonic.unresolved_floor();
             for i in 0..n {
-                let mut u = floor;
-                if w.priors[i] > 0.0 {
-                    for j in (0..n).filter(|&j| j != i && w.priors[j] > 0.0) {
-                        u = u.max(pairs[i * n + j]);
-                    }
-                }
-                w.frame_unresolved[k * n + i] = u;
+                w.frame_unresolved[k * n + i] = if w.priors[i] > 0.0 {
+                    least_resolved(pairs, i, &w.priors, floor, |_| 1.0)
+                } else {
+                    floor
+                };
             }
         }
     }
@@ -458,6 +456,23 @@ fn delay_and_sum(a: &[Complex], y: &[Complex]) -> Complex {
     } else {
         Complex::new(0.0, 0.0)
     }
+}
+
+/// How unresolved stream `i`'s claim on a bin is: its least resolved competitor's value
+/// (`pairs`: the bin's stream x competitor values), counting only competitors with a prior,
+/// each weighed by `weight(j)`, and at least `floor`.
+pub(super) fn least_resolved(
+    pairs: &[f64],
+    i: usize,
+    priors: &[f64],
+    floor: f64,
+    weight: impl Fn(usize) -> f64,
+) -> f64 {
+    let n = priors.len();
+    (0..n)
+        .filter(|&j| j != i && priors[j] > 0.0)
+        .map(|j| pairs[i * n + j] * weight(j))
+        .fold(floor, f64::max)
 }
 
 #[cfg(test)]

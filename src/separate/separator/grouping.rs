@@ -3,6 +3,7 @@
 //! of the low bins.
 
 use super::Separator;
+use super::bins::least_resolved;
 use crate::separate::harmonic::Pitch;
 use crate::separate::stream::Stream;
 
@@ -148,7 +149,10 @@ impl Separator {
             };
             w.mag[k] = g * v.norm_sqr().sqrt();
             let pairs = &w.pair_unresolved[k * n * n..(k + 1) * n * n];
-            let r = 1.0 - audible_unresolved(pairs, i, &w.audibility, &w.priors, floor);
+            // A competitor blinds the stream's F0 reading only as far as it is audible.
+            let audibility = &w.audibility;
+            let u = least_resolved(pairs, i, &w.priors, floor, |j| audibility[j]);
+            let r = 1.0 - u;
             w.reliability[k] = r * r;
         }
         let s = &mut self.streams[i];
@@ -191,23 +195,6 @@ impl Separator {
         );
         p
     }
-}
-
-/// How unresolved stream `i`'s claim on a bin is where it reads its F0: as its least resolved
-/// competitor (`pairs`: the bin's stream x competitor values) with a prior, each competitor's
-/// value weighed by its `audibility`, and at least `floor`.
-fn audible_unresolved(
-    pairs: &[f64],
-    i: usize,
-    audibility: &[f64],
-    priors: &[f64],
-    floor: f64,
-) -> f64 {
-    let n = priors.len();
-    (0..n)
-        .filter(|&j| j != i && priors[j] > 0.0)
-        .map(|j| pairs[i * n + j] * audibility.get(j).copied().unwrap_or(1.0))
-        .fold(floor, f64::max)
 }
 
 /// A stream's memory at a bin counts against the strongest stream's memory there plus this
@@ -285,19 +272,19 @@ mod tests {
         let priors = [1.0, 1.0, 1.0];
         // Every competitor audible: the least resolved one counts whole.
         let all = [1.0, 1.0, 1.0];
-        assert_eq!(audible_unresolved(&pairs, 0, &all, &priors, 0.0), 0.9);
+        let audible = |a: &[f64], priors: &[f64], floor: f64| {
+            least_resolved(&pairs, 0, priors, floor, |j| a[j])
+        };
+        assert_eq!(audible(&all, &priors, 0.0), 0.9);
         // Stream 1 silent: stream 0's bin is as unresolved as against stream 2 only.
         let silent = [1.0, 0.0, 1.0];
-        assert_eq!(audible_unresolved(&pairs, 0, &silent, &priors, 0.0), 0.1);
+        assert_eq!(audible(&silent, &priors, 0.0), 0.1);
         // Stream 1 half audible, and the floor.
         let half = [1.0, 0.25, 0.0];
-        assert!((audible_unresolved(&pairs, 0, &half, &priors, 0.0) - 0.225).abs() < 1e-12);
-        assert_eq!(audible_unresolved(&pairs, 0, &silent, &priors, 0.3), 0.3);
+        assert!((audible(&half, &priors, 0.0) - 0.225).abs() < 1e-12);
+        assert_eq!(audible(&silent, &priors, 0.3), 0.3);
         // A competitor without a prior (faded out) does not count at all.
-        assert_eq!(
-            audible_unresolved(&pairs, 0, &all, &[1.0, 0.0, 1.0], 0.0),
-            0.1
-        );
+        assert_eq!(audible(&all, &[1.0, 0.0, 1.0], 0.0), 0.1);
     }
 
     #[test]
