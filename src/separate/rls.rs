@@ -119,7 +119,8 @@ pub fn weights(state: &[Real], d: Dims, out: &mut [Complex]) {
 /// `ur`, `ui` are the blocked signals (length `lp`, zero padded).
 pub fn output(state: &[Real], d: Dims, ur: &[Real], ui: &[Real], fixed: Complex) -> Complex {
     let (vr, vi) = (&state[..d.l], &state[d.lp..d.lp + d.l]);
-    let (mut re, mut im) = (0.0f64, 0.0f64);
+    // Lane-wise partial sums (see `settle`).
+    let (mut re, mut im) = ([0.0f64; 4], [0.0f64; 4]);
     for j in 0..d.l {
         // conj(v) u
         let (a, b, x, y) = (
@@ -128,10 +129,11 @@ pub fn output(state: &[Real], d: Dims, ur: &[Real], ui: &[Real], fixed: Complex)
             f64::from(ur[j]),
             f64::from(ui[j]),
         );
-        re += a * x + b * y;
-        im += a * y - b * x;
+        re[j % 4] += a * x + b * y;
+        im[j % 4] += a * y - b * x;
     }
-    fixed - Complex::new(re, im)
+    let sum = |v: [f64; 4]| (v[0] + v[1]) + (v[2] + v[3]);
+    fixed - Complex::new(sum(re), sum(im))
 }
 
 /// P <- P - h h^H. h_i h_j^* and h_j h_i^* come from the same products, so a Hermitian
@@ -368,19 +370,24 @@ fn settle(
         sc = 1.0;
     }
     *scale = sc as Real;
-    let n2: f64 = vr.iter().chain(vi.iter()).map(|&x| f64::from(x * x)).sum();
+    // Lane-wise partial sums: one serial chain of f64 additions would cost more than the
+    // rank-one update.
+    let mut lanes = [0.0f64; 4];
+    for (i, (a, b)) in vr.iter().zip(vi.iter()).enumerate() {
+        lanes[i % 4] += f64::from(a * a) + f64::from(b * b);
+    }
+    let n2 = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
     if n2 > max_norm2 {
         let s = (max_norm2 / n2).sqrt() as Real;
         vr.iter_mut().chain(vi.iter_mut()).for_each(|x| *x *= s);
     }
-    let mut trace = 0.0f64;
-    let mut smallest = f64::INFINITY;
+    // A finite positive diagonal (so a finite trace); independent tests, no chain.
+    let mut healthy = true;
     for i in 0..l {
-        let p = f64::from(pr[i * lp + i]);
-        trace += p;
-        smallest = smallest.min(p);
+        let p = pr[i * lp + i];
+        healthy &= p > 0.0 && p < Real::INFINITY;
     }
-    n2.is_finite() && (trace * sc).is_finite() && smallest > 0.0 && sc > 0.0
+    healthy && n2.is_finite() && sc > 0.0 && sc.is_finite()
 }
 
 #[cfg(test)]

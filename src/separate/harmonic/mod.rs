@@ -267,7 +267,11 @@ impl Harmonic {
         let e = 0.5 * self.salience_whitening;
         for (k, o) in out.iter_mut().enumerate().take(len).skip(lo) {
             let mean = sum.max(0.0) / count.max(1) as f64;
-            *o = if mean > 0.0 { mean.powf(e) } else { 1.0 };
+            *o = if mean > 0.0 {
+                self::power(mean, e)
+            } else {
+                1.0
+            };
             if k >= lo + hw {
                 sum -= power(k - hw);
                 count -= 1;
@@ -540,7 +544,8 @@ impl Harmonic {
         } else if e <= 0.0 {
             1.0
         } else if g > 0.0 {
-            g.powf(e)
+            // Single precision is ample for a weight and halves libm's cost per bin and label.
+            f64::from((g as f32).powf(e as f32))
         } else {
             0.0
         }
