@@ -242,12 +242,12 @@ impl Harmonic {
     }
 
     /// The divisor of each bin's magnitude in a contest salience, for bins `lo..len`: the
-    /// mixture's RMS magnitude over the whitening band around the bin (`power(k)` is the
+    /// mixture's RMS magnitude over the whitening band around the bin (`bin_power(k)` is the
     /// mixture's power in bin k), to the power `salience_whitening`. Other bins, and every bin
     /// without whitening, get 1.
     pub fn whitening(
         &self,
-        power: impl Fn(usize) -> f64,
+        bin_power: impl Fn(usize) -> f64,
         lo: usize,
         len: usize,
         out: &mut Vec<f64>,
@@ -261,23 +261,19 @@ impl Harmonic {
         // A window sliding over [max(lo, k - hw), min(len - 1, k + hw)].
         let (mut sum, mut count) = (0.0, 0usize);
         for j in lo..(lo + hw + 1).min(len) {
-            sum += power(j);
+            sum += bin_power(j);
             count += 1;
         }
         let e = 0.5 * self.salience_whitening;
         for (k, o) in out.iter_mut().enumerate().take(len).skip(lo) {
             let mean = sum.max(0.0) / count.max(1) as f64;
-            *o = if mean > 0.0 {
-                self::power(mean, e)
-            } else {
-                1.0
-            };
+            *o = if mean > 0.0 { power(mean, e) } else { 1.0 };
             if k >= lo + hw {
-                sum -= power(k - hw);
+                sum -= bin_power(k - hw);
                 count -= 1;
             }
             if k + hw + 1 < len {
-                sum += power(k + hw + 1);
+                sum += bin_power(k + hw + 1);
                 count += 1;
             }
         }
