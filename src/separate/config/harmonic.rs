@@ -58,14 +58,13 @@ pub struct HarmonicConfig {
     pub voicing_low: f64,
     /// Comb score at or above which a label counts as fully voiced.
     pub voicing_high: f64,
-    /// Width (semitones, one standard deviation) of a label's pitch register: the F0 search
-    /// prefers candidates near the running mean of the label's own past F0s (weighted by
-    /// their ownership, which includes voicing), so a label does not pick up a neighbour's pitch in the
-    /// frames where that neighbour's leak is as strong as its own voice. 0 turns the register
-    /// off. 4 (default) against off: paper-linear6 seeds 1-3 +5.99 / +5.57 dB SI-SDRi, seeds
-    /// 4-6 +2.87 / +2.59 dB; uca8 three talkers seeds 1-3 oracle +8.20 / +7.93 dB, full
-    /// pipeline +7.76 / +7.60 dB. 2.5 and 6: paper-linear6 +5.94 / +5.88 (1-3), +2.59 / +2.81
-    /// (4-6).
+    /// Width (semitones, one standard deviation) of a label's pitch register: the F0 search prefers
+    /// candidates near the running mean of the label's own past F0s (weighted by their ownership,
+    /// which includes voicing), so a label does not pick up a neighbour's pitch in the frames where
+    /// that neighbour's leak is as strong as its own voice. 0 turns the register off. 4 (default)
+    /// against off: paper-linear6 seeds 1-3 +5.99 / +5.57 dB SI-SDRi, seeds 4-6 +2.87 / +2.59 dB;
+    /// uca8 three talkers seeds 1-3 oracle +8.20 / +7.93 dB, full pipeline +7.76 / +7.60 dB. 2.5
+    /// and 6: paper-linear6 +5.94 / +5.88 (1-3), +2.59 / +2.81 (4-6).
     pub register_semitones: f64,
     /// Memory of the register (s): its mean forgets older F0s with this time constant. 5
     /// (default) and 20 agree within 0.04 dB on paper-linear6 seeds 1-6.
@@ -82,18 +81,17 @@ pub struct HarmonicConfig {
     /// on paper-linear6 seeds 1-12 +4.86 / 1.19 either way; 2 and 4 gave +6.35 and +6.15 dB
     /// on paper-linear6 and +4.85 and +4.75 dB on recorded speech.
     pub register_ownership: f64,
-    /// How fast a label's F0 is expected to glide (semitones per second, one standard
-    /// deviation): each label's F0 is followed as a track over frames (a causal Viterbi pass
-    /// over the F0 candidates, no added delay), and a change of F0 between two voiced frames
-    /// costs (Δ / (this x hop))² / 2 nats, up to `track_jump`. 0 searches every frame on its
-    /// own (the earlier rule). On (16, jump 0.3) against off (before the competitors'
-    /// audibility), full pipeline, SI-SDRi (dB) /
-    /// streams per talker: paper-linear6 seeds 1-24 +7.51 / 1.15 against +7.29 / 1.13, seeds
-    /// 25-36 (not used to choose) +7.42 / 1.22 against +7.20 / 1.25, oracle tracks seeds 1-12
-    /// +7.88 / 1.11 against +7.66 / 1.14; recorded speech on paper-linear6 seeds 1-24 +5.07 /
-    /// 1.21 against +5.05 / 1.22, on uca8 three talkers seeds 1-12 +5.76 / 1.25 against +5.76
-    /// / 1.22; uca8 seeds 1-6 +8.95 either way. 8 and 32: paper-linear6 +7.49 and +7.46 dB
-    /// against +7.52 (jump 0.5, every candidate scored).
+    /// How fast a label's F0 is expected to glide (semitones per second, one standard deviation):
+    /// each label's F0 is followed as a track over frames (a causal Viterbi pass over the F0
+    /// candidates, no added delay), and a change of F0 between two voiced frames costs (Δ / (this x
+    /// hop))² / 2 nats, up to `track_jump`. 0 searches every frame on its own (the earlier rule).
+    /// On (16, jump 0.3) against off (before the competitors' audibility), full pipeline, SI-SDRi
+    /// (dB) / streams per talker: paper-linear6 seeds 1-24 +7.51 / 1.15 against +7.29 / 1.13, seeds
+    /// 25-36 (not used to choose) +7.42 / 1.22 against +7.20 / 1.25, oracle tracks seeds 1-12 +7.88
+    /// / 1.11 against +7.66 / 1.14; recorded speech on paper-linear6 seeds 1-24 +5.07 / 1.21
+    /// against +5.05 / 1.22, on uca8 three talkers seeds 1-12 +5.76 / 1.25 against +5.76 / 1.22;
+    /// uca8 seeds 1-6 +8.95 either way. 8 and 32: paper-linear6 +7.49 and +7.46 dB against +7.52
+    /// (jump 0.5, every candidate scored).
     pub track_semitones_per_s: f64,
     /// Cost (nats) of any larger change of F0 between voiced frames: a new F0 is taken at once
     /// where its comb's selection score is e^track_jump times the continuing one's. 0.3

@@ -434,11 +434,11 @@ impl Harmonic {
     }
 
     /// Each label's harmonic evidence at bin `k`: its voicing times its comb's membership there
-    /// times its share of the bin, (its comb's strength / the strongest comb's)^`ownership_exponent`,
-    /// a comb's strength being its salience times its register fit times its membership. Two
-    /// labels with the same F0 compare their saliences, each weighted by how well the F0 fits
-    /// that label's register; a label whose F0 is a subharmonic of a louder one's loses the
-    /// bins the louder comb passes through and keeps those between them.
+    /// times its share of the bin, (its comb's strength / the strongest
+    /// comb's)^`ownership_exponent`, a comb's strength being its salience times its register fit
+    /// times its membership. Two labels with the same F0 compare their saliences, each weighted by
+    /// how well the F0 fits that label's register; a label whose F0 is a subharmonic of a louder
+    /// one's loses the bins the louder comb passes through and keeps those between them.
     pub fn evidence(&self, pitch: &[Pitch], k: usize, out: &mut [f64]) {
         let kf = k as f64;
         let mut top = 0.0f64;
@@ -492,7 +492,7 @@ impl Harmonic {
         }
         let step = f0 / self.hz_per_bin;
         let h = (kf / step).round().max(1.0);
-        hann_power((kf - h * step).abs())
+        hann_power(kf - h * step)
     }
 
     /// Regroups one bin: `gains` are the labels' spatial gains, `unresolved` how ambiguous each

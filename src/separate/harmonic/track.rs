@@ -61,15 +61,15 @@ impl Transition {
 }
 
 impl Harmonic {
-    /// The label's pitch this frame: the pitch of `mag` (read as [`Harmonic::pitch`] reads
-    /// it) as the continuation of the label's `track`, or searched in this frame alone
-    /// ([`Harmonic::pitch`]) with tracking off. A candidate's evidence is the log of its selection score (times the
-    /// register's preference) relative to the frame's best; a path's score adds its frames'
-    /// evidence less `transition`'s cost of each change of F0, scaled by the voicing of the
-    /// weaker of the two frames (an unvoiced frame binds nothing). The pitch is the candidate
-    /// that ends the best path. Scored are the candidates [`Harmonic::pitch`] refines and those
-    /// a path from the last frame's pitch can reach without the jump cost; any other
-    /// continues no path.
+    /// The label's pitch this frame: the pitch of `mag` (read as [`Harmonic::pitch`] reads it) as
+    /// the continuation of the label's `track`, or searched in this frame alone
+    /// ([`Harmonic::pitch`]) with tracking off. A candidate's evidence is the log of its selection
+    /// score (times the register's preference) relative to the frame's best; a path's score adds
+    /// its frames' evidence less `transition`'s cost of each change of F0, scaled by the voicing of
+    /// the weaker of the two frames (an unvoiced frame binds nothing). The pitch is the candidate
+    /// that ends the best path. Scored are the candidates [`Harmonic::pitch`] refines and those a
+    /// path from the last frame's pitch can reach without the jump cost; any other continues no
+    /// path.
     pub fn next_pitch(
         &self,
         mag: &[f64],
