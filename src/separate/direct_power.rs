@@ -24,6 +24,11 @@ use crate::geometry::Vec3;
 /// silent against quiet talker 0.55 in 0.3-1 kHz against 0.77 in 1-4 kHz, paper-linear6).
 pub const BAND_HZ: (f64, f64) = (1000.0, 4000.0);
 
+/// Lower edge (Hz) of the optional low band (up to `BAND_HZ.0`), whose share is averaged with
+/// the main band's: a vowel with no power above 1 kHz (a nasal murmur, a dark back vowel) has
+/// no share in the main band, however loud it is below.
+pub const LOW_BAND_HZ: f64 = 250.0;
+
 /// The fit reads every this many bins of the band: the shares are sums over the band, and
 /// neighbouring bins of one frame are strongly correlated (the analysis window's main lobe spans
 /// four), so one bin per main lobe carries nearly all of the information. Against every second
@@ -60,18 +65,33 @@ pub struct DirectPowerFit {
     /// Per band bin: the last frame's support (bit j: power j was positive), the next solve's
     /// start (it rarely changes from frame to frame).
     support: Vec<u32>,
-    /// This frame's direct-path power per label, summed over the band, and all fitted power.
+    /// First bin of the main band: bins below it (from `k0`) make up the low band.
+    split: usize,
+    /// This frame's direct-path power per label, summed over the main band, and all fitted power.
     power: Vec<f64>,
     total: f64,
+    /// The same over the low band (empty without one).
+    low_power: Vec<f64>,
+    low_total: f64,
     solver: Nnls,
 }
 
 impl DirectPowerFit {
     /// A fit for microphones `mics` (speed of sound `c`) on STFT bins of `hz_per_bin` Hz, the
-    /// band limited to bins below `bins`.
-    pub fn new(mics: &[Vec3], c: f64, hz_per_bin: f64, bins: usize) -> Self {
-        let k0 = (BAND_HZ.0 / hz_per_bin).ceil().max(1.0) as usize;
-        let k1 = ((BAND_HZ.1 / hz_per_bin).ceil() as usize).min(bins).max(k0);
+    /// band limited to bins below `bins`, with the low band from [`LOW_BAND_HZ`] when
+    /// `low_band`.
+    pub fn new(mics: &[Vec3], c: f64, hz_per_bin: f64, bins: usize, low_band: bool) -> Self {
+        let split = (BAND_HZ.0 / hz_per_bin).ceil().max(1.0) as usize;
+        let k1 = ((BAND_HZ.1 / hz_per_bin).ceil() as usize)
+            .min(bins)
+            .max(split);
+        // The low band's bins continue the main band's stride, so those stay the same.
+        let low = (LOW_BAND_HZ / hz_per_bin).ceil().max(1.0) as usize;
+        let k0 = if low_band && low < split {
+            split - (split - low) / BIN_STRIDE * BIN_STRIDE
+        } else {
+            split
+        };
         let m = mics.len();
         let fitted = (k1 - k0).div_ceil(BIN_STRIDE);
         let mut coherence = Vec::with_capacity(fitted * m * m);
@@ -92,6 +112,7 @@ impl DirectPowerFit {
         Self {
             k0,
             k1,
+            split,
             m,
             coherence,
             coherence_norm,
@@ -126,6 +147,10 @@ impl DirectPowerFit {
         self.power.clear();
         self.power.resize(n, 0.0);
         self.total = 0.0;
+        self.low_power.clear();
+        self.low_power
+            .resize(if self.k0 < self.split { n } else { 0 }, 0.0);
+        self.low_total = 0.0;
     }
 
     /// Fits bin `k` (in the band) from the snapshot `y` of the group's microphones and the
@@ -172,20 +197,37 @@ impl DirectPowerFit {
         }
         let phi = self.solver.solve(gram, rhs, nn, &mut self.support[b]);
         if phi.iter().all(|p| p.is_finite()) {
-            for (acc, p) in self.power.iter_mut().zip(phi) {
+            let (power, total) = if k < self.split {
+                (&mut self.low_power, &mut self.low_total)
+            } else {
+                (&mut self.power, &mut self.total)
+            };
+            for (acc, p) in power.iter_mut().zip(phi) {
                 *acc += p;
             }
-            self.total += phi.iter().sum::<f64>();
+            *total += phi.iter().sum::<f64>();
         }
     }
 
     /// Label `j`'s share of the power fitted over the band this frame (direct paths and diffuse
-    /// field), in [0, 1]; 0 when nothing was fitted.
+    /// field), in [0, 1]; 0 when nothing was fitted. With the low band, the mean of its share
+    /// there and in the main band (each band counts alike, though speech is far stronger in the
+    /// low one, whose shares the array resolves less well).
     pub fn share(&self, j: usize) -> f64 {
-        match self.power.get(j) {
-            Some(p) if self.total > 0.0 => (p / self.total).clamp(0.0, 1.0),
-            _ => 0.0,
+        let main = band_share(&self.power, self.total, j);
+        if self.low_total > 0.0 {
+            0.5 * (main + band_share(&self.low_power, self.low_total, j))
+        } else {
+            main
         }
+    }
+}
+
+/// Label `j`'s share of one band's fitted `power` (per label) of `total`.
+fn band_share(power: &[f64], total: f64, j: usize) -> f64 {
+    match power.get(j) {
+        Some(p) if total > 0.0 => (p / total).clamp(0.0, 1.0),
+        _ => 0.0,
     }
 }
 

@@ -402,9 +402,10 @@ impl Separator {
         let fit_top = ((hcfg.fit_below_hz / hz_per_bin).ceil() as usize).min(self.k_hi);
         self.harmonic_fit = HarmonicFit::new(geom.frame, hz_per_bin, fit_top, hcfg.fit_loading);
         self.direct = if self.harmonic.gates_activity() {
+            let low_band = hcfg.activity_low_band;
             self.groups
                 .iter()
-                .map(|g| DirectPowerFit::new(&g.mics, self.c, hz_per_bin, bins))
+                .map(|g| DirectPowerFit::new(&g.mics, self.c, hz_per_bin, bins, low_band))
                 .collect()
         } else {
             Vec::new()
