@@ -177,15 +177,16 @@ fn cholesky_real(g: &[f64], m: usize, ridge: f64) -> Vec<f64> {
     l
 }
 
+/// A point `r` m from the line's centre, `deg` degrees from its axis, at the line's height.
+fn at(deg: f64, r: f64) -> Vec3 {
+    let a = deg.to_radians();
+    Vec3::new(3.0, 3.25, 1.95) + Vec3::new(r * a.cos(), r * a.sin(), 0.0)
+}
+
 #[test]
 fn a_silent_label_beside_a_reverberant_talker_gets_little_of_the_direct_power() {
     // A talker 2.5 m away at 62 degrees whose reverberation carries twice its direct power,
     // and a silent label 1.3 m away at 85 degrees.
-    let centre = Vec3::new(3.0, 3.25, 1.95);
-    let at = |deg: f64, r: f64| {
-        let a = deg.to_radians();
-        centre + Vec3::new(r * a.cos(), r * a.sin(), 0.0)
-    };
     let talker = at(62.0, 2.5);
     let silent = at(85.0, 1.3);
     let shares = mean_shares(&[silent, talker], &[0.0, 1.0], 2.0, 100);
@@ -201,11 +202,6 @@ fn a_silent_label_beside_a_reverberant_talker_gets_little_of_the_direct_power() 
 fn a_talker_silent_above_1_khz_has_a_share_only_with_the_low_band() {
     // A dark vowel 1.5 m away at 110 degrees and a silent label at 62 degrees, in a weak
     // diffuse field: above 1 kHz there is nothing of the talker to measure.
-    let centre = Vec3::new(3.0, 3.25, 1.95);
-    let at = |deg: f64, r: f64| {
-        let a = deg.to_radians();
-        centre + Vec3::new(r * a.cos(), r * a.sin(), 0.0)
-    };
     let labels = [at(110.0, 1.5), at(62.0, 1.5)];
     let off = mean_shares_with(&labels, &[1.0, 0.0], 0.1, 60, (false, 1000.0));
     let on = mean_shares_with(&labels, &[1.0, 0.0], 0.1, 60, (true, 1000.0));
