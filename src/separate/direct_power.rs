@@ -70,7 +70,7 @@ pub struct DirectPowerFit {
     /// This frame's direct-path power per label, summed over the main band, and all fitted power.
     power: Vec<f64>,
     total: f64,
-    /// The same over the low band (empty without one).
+    /// The same over the low band (left at zero without one).
     low_power: Vec<f64>,
     low_total: f64,
     solver: Nnls,
@@ -148,8 +148,7 @@ impl DirectPowerFit {
         self.power.resize(n, 0.0);
         self.total = 0.0;
         self.low_power.clear();
-        self.low_power
-            .resize(if self.k0 < self.split { n } else { 0 }, 0.0);
+        self.low_power.resize(n, 0.0);
         self.low_total = 0.0;
     }
 
