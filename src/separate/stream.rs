@@ -61,8 +61,8 @@ pub(super) struct Stream {
     pub register: Register,
     /// The label's F0 track over frames (harmonic grouping).
     pub pitch_track: PitchTrack,
-    /// The label's smoothed share of the fitted direct-path power (harmonic grouping's
-    /// activity gate); a new label starts as talking.
+    /// The label's smoothed direct-path dominance (harmonic grouping's activity gate); a new
+    /// label starts as talking.
     pub activity: f64,
     /// The label's voiced segment, as the activity hold follows it.
     pub segment: Segment,

@@ -1,5 +1,5 @@
-//! Whether a label is talking: the activity gate on its voicing (its share of the direct-path
-//! power above 1 kHz), the hold that keeps a voiced segment whole through the gate, and how
+//! Whether a label is talking: the activity gate on its voicing (the share of the bins above
+//! 1 kHz its direct path dominates), the hold that keeps a voiced segment whole through the gate, and how
 //! audible a label is as another's competitor.
 
 use super::{Harmonic, Pitch, power};
@@ -16,12 +16,15 @@ pub struct Segment {
 }
 
 impl Harmonic {
-    /// Folds this frame's direct-power `share` of a label into its smoothed `activity` and
-    /// returns the factor, in [0, 1], its estimated voicing is scaled by (1 with the gate off).
-    pub fn activity_gate(&self, activity: &mut f64, share: f64) -> f64 {
-        if share.is_finite() && self.activity.is_some() {
+    /// Folds this frame's direct-path `dominance` of a label (none: no measurement, the
+    /// smoothed value holds) into its smoothed `activity` and returns the factor, in [0, 1],
+    /// its estimated voicing is scaled by (1 with the gate off).
+    pub fn activity_gate(&self, activity: &mut f64, dominance: Option<f64>) -> f64 {
+        if let Some(d) = dominance.filter(|d| d.is_finite())
+            && self.activity.is_some()
+        {
             let a = self.activity_smoothing;
-            *activity = a * *activity + (1.0 - a) * share.clamp(0.0, 1.0);
+            *activity = a * *activity + (1.0 - a) * d.clamp(0.0, 1.0);
         }
         self.gate_of(*activity)
     }
@@ -67,7 +70,7 @@ impl Harmonic {
         let continues = segment.f0 > 0.0
             && (pitch.f0 / segment.f0).ln().abs() < self.hold_log_step
             && segment.held < self.hold_max_frames;
-        // A new label's gate is open on the presumption that it talks until its own share
+        // A new label's gate is open on the presumption that it talks until its own dominance
         // has been measured; a segment starts only on a measured one.
         let opens = gate >= 0.5 && segment.seen > self.hold_start_frames;
         if gate >= 0.5 {
@@ -89,9 +92,9 @@ mod tests {
     #[test]
     fn audibility_is_the_louder_of_gate_and_comb_to_its_exponent() {
         let h = harmonic();
-        // Default gate ramp 0.05..0.2, exponent 2.
+        // Default gate ramp 0.015..0.12, exponent 2.
         assert_eq!(h.audibility(0.0, 0.0), 0.0);
-        assert!((h.audibility(0.125, 0.0) - 0.25).abs() < 1e-12);
+        assert!((h.audibility(0.0675, 0.0) - 0.25).abs() < 1e-12);
         assert!((h.audibility(0.0, 0.5) - 0.25).abs() < 1e-12);
         assert_eq!(h.audibility(1.0, 0.0), 1.0);
         // A dark vowel that shuts its gate still counts through its comb.

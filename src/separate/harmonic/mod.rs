@@ -114,7 +114,7 @@ pub struct Harmonic {
     register_half: f64,
     /// Exponent of the register's preference in a comb's strength (0: salience alone).
     register_ownership: f64,
-    /// Direct-power share ramp of the activity gate; `None` when the gate is off.
+    /// Direct-path dominance ramp of the activity gate; `None` when the gate is off.
     activity: Option<(f64, f64)>,
     activity_smoothing: f64,
     /// Largest |ln| change of F0 per frame that continues a held voiced segment (0: no hold).
@@ -122,7 +122,7 @@ pub struct Harmonic {
     /// Frames a segment may be held with the gate closed.
     hold_max_frames: usize,
     /// Frames after a label's birth before its gate is its own measurement: the smoothed
-    /// share starts at 1 and has forgotten 90 % of that after this many.
+    /// dominance starts at 1 and has forgotten 90 % of that after this many.
     hold_start_frames: usize,
     /// Power of the mixture's local level that divides a contest salience (0: raw magnitudes).
     salience_whitening: f64,
@@ -235,7 +235,7 @@ impl Harmonic {
         self.boost > 0.0 && !self.candidates.is_empty()
     }
 
-    /// Whether voicing is scaled by the labels' direct-power shares (the grouping is on and so
+    /// Whether voicing is scaled by the labels' direct-path dominances (the grouping is on and so
     /// is its activity gate).
     pub fn gates_activity(&self) -> bool {
         self.enabled() && self.activity.is_some()

@@ -159,7 +159,9 @@ impl Separator {
         // The gate's smoothing runs whether or not the pitch is known, so its state does not
         // depend on where the pitch comes from.
         let gate = match self.direct.get(s.group) {
-            Some(fit) => self.harmonic.activity_gate(&mut s.activity, fit.share(i)),
+            Some(fit) => self
+                .harmonic
+                .activity_gate(&mut s.activity, fit.dominance(i)),
             None => 1.0,
         };
         let mut p = match s.known_pitch {
