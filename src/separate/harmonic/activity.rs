@@ -107,4 +107,24 @@ mod tests {
         let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
         assert_eq!(off.audibility(0.0, 0.0), 1.0);
     }
+
+    #[test]
+    fn a_frame_without_a_measurement_keeps_the_gate_where_it_was() {
+        let h = harmonic();
+        // A new label starts as talking; silent frames close its gate (smoothing 0.5).
+        let mut activity = 1.0;
+        for _ in 0..8 {
+            h.activity_gate(&mut activity, Some(0.0));
+        }
+        let closed = h.activity_gate(&mut activity, Some(0.0));
+        assert_eq!(closed, 0.0);
+        // Frames with no counted bin (nothing above 1 kHz) or a non-finite reading leave it.
+        let before = activity;
+        assert_eq!(h.activity_gate(&mut activity, None), 0.0);
+        assert_eq!(h.activity_gate(&mut activity, Some(f64::NAN)), 0.0);
+        assert_eq!(activity, before);
+        // A label dominating a fifth of the bins opens it within two frames.
+        h.activity_gate(&mut activity, Some(0.2));
+        assert_eq!(h.activity_gate(&mut activity, Some(0.2)), 1.0);
+    }
 }
