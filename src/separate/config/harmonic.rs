@@ -118,12 +118,13 @@ pub struct HarmonicConfig {
     /// direct path holds more than half of the power (a least-squares fit of the labels' direct
     /// paths plus a diffuse field to the covariance), so a silent label that reads a
     /// neighbour's or the room's harmonics does not claim them. On against off (measured when
-    /// the gate read the label's share of the band's summed fitted power), full pipeline, SI-SDRi (dB) / streams per talker: recorded
-    /// speech on paper-linear6 seeds 1-12 +5.15 / 1.22 against +4.86 / 1.19 (oracle tracks
-    /// +5.52 / 1.17 against +5.20 / 1.25), uca8 three talkers seeds 1-6 +5.94 / 1.28 against
-    /// +5.63 / 1.33; synthetic voices paper-linear6 seeds 1-12 +6.40 / 1.22 against +6.39 /
-    /// 1.25, uca8 seeds 1-6 +8.57 / 1.17 against +8.66 / 1.17. The synthetic voices, more
-    /// harmonic than real ones, lose little to a silent label's spurious comb.
+    /// the gate read the label's share of the band's summed fitted power), full pipeline,
+    /// SI-SDRi (dB) / streams per talker: recorded speech on paper-linear6 seeds 1-12 +5.15 /
+    /// 1.22 against +4.86 / 1.19 (oracle tracks +5.52 / 1.17 against +5.20 / 1.25), uca8
+    /// three talkers seeds 1-6 +5.94 / 1.28 against +5.63 / 1.33; synthetic voices
+    /// paper-linear6 seeds 1-12 +6.40 / 1.22 against +6.39 / 1.25, uca8 seeds 1-6 +8.57 / 1.17
+    /// against +8.66 / 1.17. The synthetic voices, more harmonic than real ones, lose little to
+    /// a silent label's spurious comb.
     pub activity_gate: bool,
     /// The label's dominance (smoothed) at or below which its voicing counts as none; a silent
     /// label's median dominance is about 0.02, a talker's 5 dB or more below a neighbour about

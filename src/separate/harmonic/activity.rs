@@ -1,6 +1,6 @@
 //! Whether a label is talking: the activity gate on its voicing (the share of the bins above
-//! 1 kHz its direct path dominates), the hold that keeps a voiced segment whole through the gate, and how
-//! audible a label is as another's competitor.
+//! 1 kHz its direct path dominates), the hold that keeps a voiced segment whole through the
+//! gate, and how audible a label is as another's competitor.
 
 use super::{Harmonic, Pitch, power};
 
