@@ -20,12 +20,9 @@ impl Separator {
             return;
         }
         self.rls_constants();
-        if !self.direct.is_empty() {
-            let level = self.frame_level();
-            for (g, fit) in self.direct.iter_mut().enumerate() {
-                if self.work.active[g] {
-                    fit.begin(n, level);
-                }
+        for (g, fit) in self.direct.iter_mut().enumerate() {
+            if self.work.active[g] {
+                fit.begin(n, self.work.frame_level);
             }
         }
         for k in self.k_lo..self.k_hi {
@@ -53,13 +50,6 @@ impl Separator {
             s.steering_changed = false;
             s.constraints_changed = false;
         }
-    }
-
-    /// The frame's mean power per processed bin and microphone.
-    fn frame_level(&self) -> f64 {
-        let (ch, y) = (self.channels, &self.work.y);
-        let bins = &y[self.k_lo * ch..self.k_hi * ch];
-        bins.iter().map(|v| v.norm_sqr()).sum::<f64>() / bins.len().max(1) as f64
     }
 
     /// The canceller's per-frame constants: the forgetting per update and each stream's norm

@@ -42,6 +42,8 @@ struct MicGroup {
 struct Work {
     /// Sanitised input, bin-major: `channels` values per bin.
     y: Vec<Complex>,
+    /// The input's mean power per processed bin and microphone this frame.
+    frame_level: f64,
     /// Snapshot of each group's microphones at the current bin.
     yg: Vec<Vec<Complex>>,
     /// Per group: steering of every stream at the current bin, stream after stream.
@@ -449,15 +451,20 @@ impl Separator {
             }
         }
         let a = if self.psd_ready { PSD_SMOOTHING } else { 0.0 };
+        let mut processed = 0.0;
         for (k, p) in self.psd.iter_mut().enumerate() {
             let e: f64 = y[k * ch..(k + 1) * ch].iter().map(|v| v.norm_sqr()).sum();
             let e = e / ch.max(1) as f64;
+            if (self.k_lo..self.k_hi).contains(&k) {
+                processed += e;
+            }
             *p = if e.is_finite() {
                 a * *p + (1.0 - a) * e
             } else {
                 *p
             };
         }
+        self.work.frame_level = processed / (self.k_hi - self.k_lo).max(1) as f64;
         self.psd_ready = true;
     }
 }
