@@ -1,6 +1,7 @@
 //! The oracle runs that measure the separation's stages alone, on a generated `paper-linear6`
 //! scene through the offline pipeline: `--oracle-pitch` (the harmonic grouping reads each true
-//! source's pitch from its truth signal instead of estimating it) and `--oracle-mask` (each
+//! source's pitch from its truth signal instead of estimating it; `=f0` or `=voicing` hands over
+//! one part of it) and `--oracle-mask` (each
 //! label's audio is its true source's ideal ratio mask on the reference microphone, the
 //! ceiling of any mask there). The separator's pitch (`pitch.jsonl`) is scored beside them.
 
@@ -12,6 +13,7 @@ use avsep::pipeline::offline::{OfflineOptions, ProcessError, RunSummary, process
 use avsep::scene::Scene;
 use avsep::scene::output::Output;
 use avsep::scene::sim::{PresetOptions, SimConfig, simulate};
+use avsep::separate::PitchPart;
 
 fn scene(seed: u64) -> Scene {
     let opts = PresetOptions {
@@ -54,7 +56,7 @@ fn the_true_pitch_and_the_ideal_ratio_mask_beat_the_separators_estimate() {
     let scene = scene(1);
     let (estimated, estimated_pitch, off) = oracle_run(&scene, OfflineOptions::default());
     let pitch = OfflineOptions {
-        oracle_pitch: true,
+        oracle_pitch: Some(PitchPart::Both),
         ..OfflineOptions::default()
     };
     let (known, known_pitch, on) = oracle_run(&scene, pitch);
@@ -103,12 +105,40 @@ fn the_true_pitch_and_the_ideal_ratio_mask_beat_the_separators_estimate() {
     }
 }
 
+/// Each part of the true pitch is handed over alone. With the true voicing the grouping reads
+/// its own F0 but voices exactly the truly voiced frames; with the true F0 its F0 is right in
+/// every frame it voices, but its comb and activity gate decide which frames those are.
+#[test]
+fn the_true_voicing_or_the_true_f0_alone_is_handed_over() {
+    let scene = scene(1);
+    let run = |part| {
+        let opts = OfflineOptions {
+            oracle_pitch: part,
+            ..OfflineOptions::default()
+        };
+        let (_, pitch, summary) = oracle_run(&scene, opts);
+        assert_eq!(summary.oracle_pitch_part, part);
+        assert_eq!(summary.oracle_pitch, part.is_some());
+        pitch.expect("pitch scored").mean
+    };
+    let share = |v: Option<f64>| v.expect("voiced frames scored");
+    let estimated = run(None);
+    let voicing = run(Some(PitchPart::Voicing));
+    let f0 = run(Some(PitchPart::F0));
+    eprintln!("estimated {estimated:?}\ntrue voicing {voicing:?}\ntrue F0 {f0:?}");
+    assert!(share(voicing.false_voicing) < 0.01, "{voicing:?}");
+    assert!(share(voicing.voiced_recall) > 0.95, "{voicing:?}");
+    assert!(share(voicing.f0_within_tolerance) < 0.99, "{voicing:?}");
+    assert!(share(f0.f0_within_tolerance) > 0.99, "{f0:?}");
+    assert!(share(f0.voiced_recall) < 0.99, "{f0:?}");
+}
+
 /// Each oracle needs oracle tracks and every truth source's signal, and says so: the error
 /// names the missing flag, then the source without a signal.
 #[test]
 fn oracles_need_oracle_tracks_and_truth_signals() {
     let pitch = OfflineOptions {
-        oracle_pitch: true,
+        oracle_pitch: Some(PitchPart::Both),
         ..OfflineOptions::default()
     };
     let mask = OfflineOptions {

@@ -2,12 +2,13 @@
 
 use std::path::PathBuf;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
 use super::{CliError, Progress};
 use crate::pipeline::PipelineConfig;
 use crate::pipeline::offline::{OfflineOptions, ProcessError, process_scene};
 use crate::scene::Scene;
+use crate::separate::PitchPart;
 
 /// Arguments of `avsep process`.
 #[derive(Debug, Args)]
@@ -28,8 +29,17 @@ pub struct ProcessArgs {
     pub oracle_tracks: bool,
     /// With --oracle-tracks: give the harmonic grouping each true source's pitch (read from its
     /// truth signal) instead of estimating it, to measure the grouping with the right pitch.
-    #[arg(long, requires = "oracle_tracks")]
-    pub oracle_pitch: bool,
+    /// `--oracle-pitch=f0` hands over the F0 only (the voicing is the comb's there, through the
+    /// activity gate); `--oracle-pitch=voicing` the voicing only (the grouping reads the F0).
+    #[arg(
+        long,
+        requires = "oracle_tracks",
+        value_name = "PART",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "both"
+    )]
+    pub oracle_pitch: Option<OraclePitchArg>,
     /// With --oracle-tracks: write as each label's audio the ideal ratio mask of its true source
     /// on the reference microphone (from the truth images) instead of the separator's output:
     /// the ceiling of a single-channel mask, to measure the separator against.
@@ -38,6 +48,27 @@ pub struct ProcessArgs {
     /// Print the run summary as JSON instead of a short report.
     #[arg(long)]
     pub json: bool,
+}
+
+/// The part of the true pitch `--oracle-pitch` hands over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OraclePitchArg {
+    /// F0 and voicing.
+    Both,
+    /// The F0 only.
+    F0,
+    /// The voicing only.
+    Voicing,
+}
+
+impl From<OraclePitchArg> for PitchPart {
+    fn from(a: OraclePitchArg) -> Self {
+        match a {
+            OraclePitchArg::Both => Self::Both,
+            OraclePitchArg::F0 => Self::F0,
+            OraclePitchArg::Voicing => Self::Voicing,
+        }
+    }
 }
 
 /// Reads a pipeline configuration file, naming the file and field on error.
@@ -71,7 +102,7 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
         &args.out,
         OfflineOptions {
             oracle_tracks: args.oracle_tracks,
-            oracle_pitch: args.oracle_pitch,
+            oracle_pitch: args.oracle_pitch.map(PitchPart::from),
             oracle_mask: args.oracle_mask,
             ..Default::default()
         },
@@ -103,4 +134,46 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Cli, Command};
+    use super::*;
+    use clap::Parser;
+
+    fn oracle_pitch(args: &[&str]) -> Result<Option<PitchPart>, clap::Error> {
+        let cli = Cli::try_parse_from(
+            ["avsep", "process", "scene", "--out", "out"]
+                .iter()
+                .chain(args),
+        )?;
+        match cli.command {
+            Command::Process(p) => Ok(p.oracle_pitch.map(PitchPart::from)),
+            other => panic!("parsed as {other:?}"),
+        }
+    }
+
+    /// A bare `--oracle-pitch` hands over the whole pitch; `=f0` and `=voicing` a part; it needs
+    /// oracle tracks, and a value needs the `=` so it never swallows the next argument.
+    #[test]
+    fn oracle_pitch_takes_an_optional_part() {
+        let tracks = "--oracle-tracks";
+        assert_eq!(oracle_pitch(&[tracks]).ok(), Some(None));
+        assert_eq!(
+            oracle_pitch(&[tracks, "--oracle-pitch"]).ok(),
+            Some(Some(PitchPart::Both))
+        );
+        assert_eq!(
+            oracle_pitch(&[tracks, "--oracle-pitch=f0"]).ok(),
+            Some(Some(PitchPart::F0))
+        );
+        assert_eq!(
+            oracle_pitch(&["--oracle-pitch=voicing", tracks]).ok(),
+            Some(Some(PitchPart::Voicing))
+        );
+        assert!(oracle_pitch(&["--oracle-pitch"]).is_err());
+        assert!(oracle_pitch(&[tracks, "--oracle-pitch=pitch"]).is_err());
+        assert!(oracle_pitch(&[tracks, "--oracle-pitch", "voicing"]).is_err());
+    }
 }

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::separate::PitchPart;
 use serde::Serialize;
 
 use crate::label::Label;
@@ -26,9 +27,9 @@ use crate::dsp::FrameGeometry;
 pub struct OfflineOptions {
     /// Steer the separator with the scene's true trajectories instead of the tracker.
     pub oracle_tracks: bool,
-    /// With `oracle_tracks`: the harmonic grouping reads each true source's pitch from its
-    /// truth signal instead of estimating it.
-    pub oracle_pitch: bool,
+    /// With `oracle_tracks`: the harmonic grouping takes this part of each true source's pitch,
+    /// read from its truth signal, instead of estimating it.
+    pub oracle_pitch: Option<PitchPart>,
     /// With `oracle_tracks`: each label's audio is the ideal ratio mask of its true source on
     /// the reference microphone (from the truth images) instead of the separator's output, the
     /// ceiling a separator is measured against.
@@ -41,7 +42,7 @@ impl Default for OfflineOptions {
     fn default() -> Self {
         Self {
             oracle_tracks: false,
-            oracle_pitch: false,
+            oracle_pitch: None,
             oracle_mask: false,
             block_samples: 1024,
         }
@@ -75,8 +76,11 @@ pub struct RunSummary {
     pub real_time_factor: f64,
     /// Whether the tracks were the scene's truth.
     pub oracle_tracks: bool,
-    /// Whether the harmonic grouping was given the true sources' pitch.
+    /// Whether the harmonic grouping was given the true sources' pitch (or part of it).
     pub oracle_pitch: bool,
+    /// Which part of the true pitch it was given, when it was.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub oracle_pitch_part: Option<PitchPart>,
     /// Whether the audio is the truth's ideal ratio mask instead of the separator's output.
     pub oracle_mask: bool,
     /// Labels ever reported.
@@ -248,8 +252,8 @@ pub fn process_scene(
         })?;
         pipeline.use_oracle_tracks(truth);
     }
-    if opts.oracle_pitch {
-        pipeline.use_oracle_pitch().map_err(|e| {
+    if let Some(part) = opts.oracle_pitch {
+        pipeline.use_oracle_pitch(part).map_err(|e| {
             ProcessError::Scene(format!("{}: --oracle-pitch: {e}", scene.dir.display()))
         })?;
     }
@@ -297,7 +301,8 @@ pub fn process_scene(
             0.0
         },
         oracle_tracks: opts.oracle_tracks,
-        oracle_pitch: opts.oracle_pitch,
+        oracle_pitch: opts.oracle_pitch.is_some(),
+        oracle_pitch_part: opts.oracle_pitch,
         oracle_mask: opts.oracle_mask,
         tracks: written.labels.iter().map(ToString::to_string).collect(),
         speech_segments: written.speech_segments,

@@ -9,7 +9,7 @@ use crate::label::Label;
 use crate::localize::ArrayObservation;
 use crate::scene::format::{AudioMeasurementLine, DoaFile, TrackFile};
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, FaceBox, Truth};
-use crate::separate::{SeparatorConfig, Target};
+use crate::separate::{KnownPitch, PitchPart, SeparatorConfig, Target};
 use crate::track::{Measurement, Scan, SensorKey, TrackEstimate};
 
 use super::config::{AudioMeasurementSource, LocalizedMeasurements, PipelineConfig};
@@ -388,23 +388,30 @@ pub fn oracle_targets(
             direction_only: false,
             speaking: e.speaking,
             activity,
-            pitch: pitch.map(|p| p.at(e.label.index as usize, t)),
+            pitch: pitch.map(|p| p.known(e.label.index as usize, t)),
         })
         .collect()
 }
 
 /// The true sources' pitch (`--oracle-pitch`): each source image's voice read by YIN, one
-/// frame per separator hop, centred where the separator's frames are.
+/// frame per separator hop, centred where the separator's frames are, and the part of it the
+/// separator is handed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OraclePitch {
     hop_s: f64,
     tracks: Vec<Vec<VoicePitch>>,
+    part: PitchPart,
 }
 
 impl OraclePitch {
     /// Pitch tracks of every source of `truth` at `sample_rate` Hz with the separator's framing
     /// and F0 range; the error names a source without a signal.
-    pub fn new(truth: &Truth, sample_rate: u32, cfg: &SeparatorConfig) -> Result<Self, String> {
+    pub fn new(
+        truth: &Truth,
+        sample_rate: u32,
+        cfg: &SeparatorConfig,
+        part: PitchPart,
+    ) -> Result<Self, String> {
         let fs = f64::from(sample_rate);
         let h = &cfg.post_filter.harmonic;
         let yin = Yin::new(fs, h.f0_min_hz, h.f0_max_hz, cfg.frame);
@@ -421,7 +428,13 @@ impl OraclePitch {
         Ok(Self {
             hop_s: cfg.hop.max(1) as f64 / fs,
             tracks,
+            part,
         })
+    }
+
+    /// The part of source `i`'s pitch at time `t` (s) that the separator is handed.
+    pub fn known(&self, i: usize, t: f64) -> KnownPitch {
+        KnownPitch::new(self.part, self.at(i, t))
     }
 
     /// Source `i`'s pitch in the frame nearest time `t` (s); unvoiced outside its signal.
@@ -475,7 +488,8 @@ mod tests {
         let truth = Truth {
             sources: vec![source("s1", Some(voice))],
         };
-        let p = OraclePitch::new(&truth, fs, &cfg).expect("every source has a signal");
+        let p =
+            OraclePitch::new(&truth, fs, &cfg, PitchPart::Both).expect("every source has a signal");
         assert_eq!(p.at(0, 0.2), VoicePitch::default());
         let v = p.at(0, 1.0);
         assert!(
@@ -487,13 +501,25 @@ mod tests {
         assert_eq!(p.at(0, -1.0), VoicePitch::default());
         assert_eq!(p.at(3, 1.0), VoicePitch::default());
         let targets = oracle_targets(&truth, 1.0, 1.0, Some(&p));
-        assert_eq!(targets[0].pitch, Some(v));
+        assert_eq!(targets[0].pitch, Some(KnownPitch::Both(v)));
+        // A part of the pitch hands over that part only.
+        for (part, known) in [
+            (PitchPart::F0, KnownPitch::F0(v.f0)),
+            (PitchPart::Voicing, KnownPitch::Voicing(v.voicing)),
+        ] {
+            let p = OraclePitch::new(&truth, fs, &cfg, part).expect("every source has a signal");
+            assert_eq!(
+                oracle_targets(&truth, 1.0, 1.0, Some(&p))[0].pitch,
+                Some(known)
+            );
+        }
         assert_eq!(oracle_targets(&truth, 1.0, 1.0, None)[0].pitch, None);
 
         let missing = Truth {
             sources: vec![source("s1", None)],
         };
-        let err = OraclePitch::new(&missing, fs, &cfg).expect_err("s1 has no signal");
+        let err =
+            OraclePitch::new(&missing, fs, &cfg, PitchPart::Both).expect_err("s1 has no signal");
         assert!(err.contains("\"s1\""), "{err}");
     }
 }

@@ -59,8 +59,44 @@ pub struct Target {
     pub speaking: f64,
     /// This frame's voice-activity score, in [0, 1].
     pub activity: f64,
-    /// The target's true pitch at this frame, used instead of the harmonic grouping's estimate
-    /// (offline `--oracle-pitch` runs, which measure the grouping with the right pitch); `None`
-    /// estimates it.
-    pub pitch: Option<VoicePitch>,
+    /// The target's true pitch at this frame, used instead of (part of) the harmonic grouping's
+    /// estimate (offline `--oracle-pitch` runs, which measure the grouping with the right pitch);
+    /// `None` estimates it.
+    pub pitch: Option<KnownPitch>,
+}
+
+/// Which part of a true pitch an oracle run hands the harmonic grouping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PitchPart {
+    /// F0 and voicing.
+    #[default]
+    Both,
+    /// The F0 only; the voicing is the label's comb's at that F0, through the activity gate.
+    F0,
+    /// The voicing only; the grouping reads the F0 itself, and the true voicing replaces its
+    /// comb's voicing and activity gate.
+    Voicing,
+}
+
+/// A target's known pitch this frame: the part of its true pitch an oracle run hands over.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum KnownPitch {
+    /// F0 and voicing.
+    Both(VoicePitch),
+    /// The F0 (Hz); 0 when the frame is silent.
+    F0(f64),
+    /// The voicing in [0, 1].
+    Voicing(f64),
+}
+
+impl KnownPitch {
+    /// `part` of `pitch`.
+    pub fn new(part: PitchPart, pitch: VoicePitch) -> Self {
+        match part {
+            PitchPart::Both => Self::Both(pitch),
+            PitchPart::F0 => Self::F0(pitch.f0),
+            PitchPart::Voicing => Self::Voicing(pitch.voicing),
+        }
+    }
 }

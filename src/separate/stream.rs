@@ -1,5 +1,6 @@
 //! One label's stream in the bank: where it steers, its lifecycle and its per-bin adaptive state.
 
+use super::KnownPitch;
 use super::blocking::BlockingBank;
 use super::config::BeamformerKind;
 use super::harmonic::{PitchTrack, Register, Segment};
@@ -8,7 +9,7 @@ use super::null_steering::NullSteering;
 use super::postfilter::PostState;
 use super::rls;
 use super::steering::Steering;
-use crate::dsp::{Complex, VoicePitch};
+use crate::dsp::Complex;
 use crate::geometry::Vec3;
 use crate::label::Label;
 
@@ -73,8 +74,9 @@ pub(super) struct Stream {
     pub comb_voicing: f64,
     /// Smoothed fitted power per bin below the harmonic fit's top (the fit's memory).
     pub fit_memory: Vec<f64>,
-    /// This frame's known pitch from the target (oracle runs), used instead of the estimate.
-    pub known_pitch: Option<VoicePitch>,
+    /// This frame's known pitch from the target (oracle runs), used instead of (part of) the
+    /// estimate.
+    pub known_pitch: Option<KnownPitch>,
 }
 
 impl Stream {

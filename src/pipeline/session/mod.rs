@@ -16,6 +16,7 @@ use crate::geometry::Layout;
 use crate::label::Label;
 use crate::localize::Localizer;
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, Truth};
+use crate::separate::PitchPart;
 use crate::track::{SensorKey, Tracker, build_tracker, sensors_from_layout};
 
 use super::config::{ConfigError, PipelineConfig};
@@ -156,14 +157,14 @@ impl Pipeline {
         self.source = TrackSource::Oracle(truth, None);
     }
 
-    /// With oracle tracks, hands the separator each true source's pitch (read from its signal)
-    /// instead of the harmonic grouping's estimate, to measure the grouping alone. The error
-    /// says why it cannot (no oracle tracks, or a source without a signal).
-    pub fn use_oracle_pitch(&mut self) -> Result<(), String> {
+    /// With oracle tracks, hands the separator `part` of each true source's pitch (read from its
+    /// signal) instead of the harmonic grouping's estimate, to measure the grouping alone. The
+    /// error says why it cannot (no oracle tracks, or a source without a signal).
+    pub fn use_oracle_pitch(&mut self, part: PitchPart) -> Result<(), String> {
         let rate = self.layout.sample_rate;
         match &mut self.source {
             TrackSource::Oracle(truth, pitch) => {
-                *pitch = Some(OraclePitch::new(truth, rate, &self.cfg.separate)?);
+                *pitch = Some(OraclePitch::new(truth, rate, &self.cfg.separate, part)?);
                 Ok(())
             }
             TrackSource::Tracker { .. } => {

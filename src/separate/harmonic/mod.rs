@@ -379,6 +379,24 @@ impl Harmonic {
         }
     }
 
+    /// The pitch of `mag` (read as [`Harmonic::pitch`] reads it) when only its F0 is known: the
+    /// comb's voicing and salience at that F0.
+    pub fn pitch_at(
+        &self,
+        mag: &[f64],
+        reliability: &[f64],
+        f0: f64,
+        scratch: &mut Vec<[f64; 4]>,
+    ) -> Pitch {
+        if !(f0 > 0.0 && f0.is_finite()) {
+            return Pitch::default();
+        }
+        match Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) {
+            Some(comb) => self.pitch_of(f0, comb.score(f0)),
+            None => Pitch::default(),
+        }
+    }
+
     /// The exhaustive search over every candidate (the reference of [`Harmonic::pitch`]).
     #[cfg(test)]
     fn pitch_exhaustive(&self, mag: &[f64], reliability: &[f64]) -> Pitch {

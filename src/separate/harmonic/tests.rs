@@ -411,6 +411,31 @@ fn a_known_pitch_is_kept_and_its_combs_salience_measured() {
 }
 
 #[test]
+fn a_known_f0_is_read_with_the_combs_own_voicing_there() {
+    let h = harmonic();
+    let rel = vec![1.0; N / 2 + 1];
+    let mag = spectrum(&voiced(150.0, 1.0));
+    let mut scratch = Vec::new();
+    // At the voice's F0 the comb is what the search finds, voicing and salience alike.
+    let right = h.pitch_at(&mag, &rel, 150.0, &mut scratch);
+    let searched = h.pitch(&mag, &rel, &Register::default(), &mut scratch);
+    assert_eq!(right.f0, 150.0);
+    assert!(
+        (right.voicing - searched.voicing).abs() < 0.05
+            && (right.salience / searched.salience - 1.0).abs() < 0.05,
+        "{right:?} {searched:?}"
+    );
+    // At an F0 the spectrum does not carry, the comb reads as unvoiced.
+    let wrong = h.pitch_at(&mag, &rel, 190.0, &mut scratch);
+    assert_eq!(wrong.f0, 190.0);
+    assert!(wrong.voicing < 0.5 * right.voicing, "{wrong:?} {right:?}");
+    // A silent or nonsense F0 gives no comb.
+    for f0 in [0.0, -150.0, f64::NAN] {
+        assert_eq!(h.pitch_at(&mag, &rel, f0, &mut scratch), Pitch::default());
+    }
+}
+
+#[test]
 fn whitening_is_the_local_rms_magnitude_to_its_power() {
     let h = harmonic();
     let mut s = 5u64;
