@@ -387,55 +387,6 @@ fn leakage_follows_the_steering_correlation_and_loading() {
 }
 
 #[test]
-fn a_known_pitch_is_kept_and_its_combs_salience_measured() {
-    let h = harmonic();
-    let rel = vec![1.0; N / 2 + 1];
-    let mag = spectrum(&voiced(150.0, 1.0));
-    let mut scratch = Vec::new();
-    let known = |f0, voicing| VoicePitch { f0, voicing };
-    let right = h.known_pitch(&mag, &rel, known(150.0, 0.8), &mut scratch);
-    assert_eq!((right.f0, right.voicing), (150.0, 0.8));
-    // The comb measured at the known F0 is the one the search would find; at a pitch the
-    // spectrum does not carry it is far weaker.
-    let searched = h.pitch(&mag, &rel, &Register::default(), &mut scratch);
-    assert!(
-        (right.salience / searched.salience - 1.0).abs() < 0.05,
-        "{right:?} {searched:?}"
-    );
-    let wrong = h.known_pitch(&mag, &rel, known(190.0, 1.0), &mut scratch);
-    assert!(wrong.salience < 0.2 * right.salience, "{wrong:?} {right:?}");
-    // Unvoiced (or nonsense) known pitches give no comb.
-    for k in [known(150.0, 0.0), known(0.0, 1.0), known(f64::NAN, 1.0)] {
-        assert_eq!(h.known_pitch(&mag, &rel, k, &mut scratch), Pitch::default());
-    }
-}
-
-#[test]
-fn a_known_f0_is_read_with_the_combs_own_voicing_there() {
-    let h = harmonic();
-    let rel = vec![1.0; N / 2 + 1];
-    let mag = spectrum(&voiced(150.0, 1.0));
-    let mut scratch = Vec::new();
-    // At the voice's F0 the comb is what the search finds, voicing and salience alike.
-    let right = h.pitch_at(&mag, &rel, 150.0, &mut scratch);
-    let searched = h.pitch(&mag, &rel, &Register::default(), &mut scratch);
-    assert_eq!(right.f0, 150.0);
-    assert!(
-        (right.voicing - searched.voicing).abs() < 0.05
-            && (right.salience / searched.salience - 1.0).abs() < 0.05,
-        "{right:?} {searched:?}"
-    );
-    // At an F0 the spectrum does not carry, the comb reads as unvoiced.
-    let wrong = h.pitch_at(&mag, &rel, 190.0, &mut scratch);
-    assert_eq!(wrong.f0, 190.0);
-    assert!(wrong.voicing < 0.5 * right.voicing, "{wrong:?} {right:?}");
-    // A silent or nonsense F0 gives no comb.
-    for f0 in [0.0, -150.0, f64::NAN] {
-        assert_eq!(h.pitch_at(&mag, &rel, f0, &mut scratch), Pitch::default());
-    }
-}
-
-#[test]
 fn whitening_is_the_local_rms_magnitude_to_its_power() {
     let h = harmonic();
     let mut s = 5u64;
