@@ -5,13 +5,14 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
-use crate::separate::PitchPart;
 use serde::Serialize;
 
+use crate::dsp::FrameGeometry;
 use crate::label::Label;
 use crate::scene::format::PitchLine;
 use crate::scene::output::{files, prepare_dir};
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_json};
+use crate::separate::PitchPart;
 
 use super::PipelineEvent;
 use super::config::{ConfigError, PipelineConfig};
@@ -20,7 +21,6 @@ use super::input::InputError;
 use super::oracle_mask::ideal_ratio_mask;
 use super::session::{Pipeline, PipelineStats};
 use super::stages::oracle_label;
-use crate::dsp::FrameGeometry;
 
 /// Options of an offline run.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -63,8 +63,8 @@ impl Harmonic {
         }
         whitened.clear();
         whitened.extend(mag.iter().zip(level).map(|(m, l)| m / l));
-        if let Some(comb) = Comb::new(whitened, reliability, self.k_max, self.hz_per_bin, scratch) {
-            p.salience = comb.score(p.f0).1.max(0.0);
+        if let Some((_, salience, _)) = self.score_at(whitened, reliability, p.f0, scratch) {
+            p.salience = salience.max(0.0);
         }
     }
 
@@ -133,11 +133,11 @@ impl Harmonic {
         if !(known.f0 > 0.0 && known.voicing > 0.0 && known.f0.is_finite()) {
             return Pitch::default();
         }
-        match Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) {
-            Some(comb) => Pitch {
+        match self.score_at(mag, reliability, known.f0, scratch) {
+            Some((_, salience, _)) => Pitch {
                 f0: known.f0,
                 voicing: known.voicing.clamp(0.0, 1.0),
-                salience: comb.score(known.f0).1.max(0.0),
+                salience: salience.max(0.0),
                 register_fit: 1.0,
             },
             None => Pitch::default(),
@@ -156,10 +156,20 @@ impl Harmonic {
         if !(f0 > 0.0 && f0.is_finite()) {
             return Pitch::default();
         }
-        match Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) {
-            Some(comb) => self.pitch_of(f0, comb.score(f0)),
-            None => Pitch::default(),
-        }
+        self.score_at(mag, reliability, f0, scratch)
+            .map_or_else(Pitch::default, |score| self.pitch_of(f0, score))
+    }
+
+    /// The comb of `f0` on `mag` (read as [`Harmonic::pitch`] reads it); `None` when the
+    /// spectrum is too short for one.
+    fn score_at(
+        &self,
+        mag: &[f64],
+        reliability: &[f64],
+        f0: f64,
+        scratch: &mut Vec<[f64; 4]>,
+    ) -> Option<Score> {
+        Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch).map(|c| c.score(f0))
     }
 
     /// The exhaustive search over every candidate (the reference of [`Harmonic::pitch`]).

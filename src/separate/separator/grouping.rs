@@ -165,36 +165,39 @@ impl Separator {
                 .activity_gate(&mut s.activity, fit.dominance(i)),
             None => 1.0,
         };
-        let mut p = if let Some(KnownPitch::Both(known)) = s.known_pitch {
-            let p = self
-                .harmonic
-                .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table);
-            s.comb_voicing = p.voicing;
-            p
-        } else {
-            let mut p = match s.known_pitch {
-                Some(KnownPitch::F0(f0)) => {
+        let mut p = match s.known_pitch {
+            Some(KnownPitch::Both(known)) => {
+                let p =
                     self.harmonic
-                        .pitch_at(&w.mag, &w.reliability, f0, &mut w.pitch_table)
-                }
-                _ => self.harmonic.next_pitch(
-                    &w.mag,
-                    &w.reliability,
-                    &s.register,
-                    &mut s.pitch_track,
-                    &mut w.pitch_table,
-                ),
-            };
-            s.comb_voicing = p.voicing;
-            let held = self.harmonic.hold(&mut s.segment, &p, gate);
-            s.held = held > gate;
-            p.voicing *= held;
-            if let Some(KnownPitch::Voicing(v)) = s.known_pitch {
-                // The true voicing replaces the comb's and the gate's, so the hold marks nothing.
-                p.voicing = if p.f0 > 0.0 { v.clamp(0.0, 1.0) } else { 0.0 };
-                s.held = false;
+                        .known_pitch(&w.mag, &w.reliability, known, &mut w.pitch_table);
+                s.comb_voicing = p.voicing;
+                p
             }
-            p
+            known => {
+                let mut p = match known {
+                    Some(KnownPitch::F0(f0)) => {
+                        self.harmonic
+                            .pitch_at(&w.mag, &w.reliability, f0, &mut w.pitch_table)
+                    }
+                    _ => self.harmonic.next_pitch(
+                        &w.mag,
+                        &w.reliability,
+                        &s.register,
+                        &mut s.pitch_track,
+                        &mut w.pitch_table,
+                    ),
+                };
+                s.comb_voicing = p.voicing;
+                let held = self.harmonic.hold(&mut s.segment, &p, gate);
+                s.held = held > gate;
+                p.voicing *= held;
+                if let Some(KnownPitch::Voicing(v)) = known {
+                    // The true voicing replaces the comb's and the gate's: nothing is held.
+                    p.voicing = if p.f0 > 0.0 { v.clamp(0.0, 1.0) } else { 0.0 };
+                    s.held = false;
+                }
+                p
+            }
         };
         self.harmonic.whiten_salience(
             &mut p,
