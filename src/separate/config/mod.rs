@@ -383,6 +383,14 @@ mod tests {
             "post_filter.harmonic.voicing_high"
         );
         assert_eq!(
+            field(|c| c.post_filter.harmonic.periodicity_high = 0.1),
+            "post_filter.harmonic.periodicity_high"
+        );
+        assert_eq!(
+            field(|c| c.post_filter.harmonic.periodicity_low = -0.1),
+            "post_filter.harmonic.periodicity_low"
+        );
+        assert_eq!(
             field(|c| c.post_filter.harmonic.f0_max_hz = 50.0),
             "post_filter.harmonic.f0_max_hz"
         );

@@ -136,6 +136,13 @@ impl HarmonicConfig {
                 "must be above voicing_low and at most 1",
             ));
         }
+        in_range("periodicity_low", self.periodicity_low, 0.0, 1.0)?;
+        if !(self.periodicity_high > self.periodicity_low && self.periodicity_high <= 1.0) {
+            return Err(ConfigError::new(
+                "periodicity_high",
+                "must be above periodicity_low and at most 1",
+            ));
+        }
         in_range("register_semitones", self.register_semitones, 0.0, 48.0)?;
         in_range("register_memory_s", self.register_memory_s, 0.01, 3600.0)?;
         in_range(

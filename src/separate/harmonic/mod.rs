@@ -3,9 +3,10 @@
 //! Where two labels' steering vectors are nearly collinear (low frequencies, labels a few degrees
 //! apart on a small array) their beamformer outputs carry the same mixture and the spatial gains
 //! split each bin by chance. Voiced speech carries a second cue there: its energy sits on the
-//! harmonics of its F0. Per frame, each label's F0 and voicing are estimated from its own
-//! post-filtered spectrum in the bins the array does resolve for it (peak-minus-valley harmonic
-//! comb, Hermes-style subharmonic summation), and in the unresolved bins the labels' pooled gain
+//! harmonics of its F0. Per frame, each label's F0 is estimated from its own post-filtered
+//! spectrum in the bins the array does resolve for it (peak-minus-valley harmonic comb,
+//! Hermes-style subharmonic summation) and its voicing from the periodicity of its whole
+//! post-filtered frame ([`Periodicity`]), and in the unresolved bins the labels' pooled gain
 //! is redistributed towards the labels whose harmonic comb passes through the bin (a product of
 //! the harmonic evidence and the spatial gain, the latter counting only as far as the pair is
 //! resolved: where the beamformers pass the same mixture it only says who is louder).
@@ -27,6 +28,7 @@ use comb::hann_power;
 mod activity;
 mod comb;
 mod fit;
+mod periodicity;
 mod reading;
 mod track;
 
@@ -34,6 +36,7 @@ pub use activity::Segment;
 #[cfg(test)]
 pub(crate) use fit::tests as fit_signals;
 pub use fit::{HarmonicFit, hann_transform};
+pub use periodicity::Periodicity;
 pub use track::PitchTrack;
 use track::Transition;
 
@@ -55,7 +58,8 @@ const COARSE_TOP_HZ: f64 = 2000.0;
 pub struct Pitch {
     /// F0 (Hz); 0 when unknown.
     pub f0: f64,
-    /// Voicing in [0, 1] from the normalised comb score (0 at or below `voicing_low`).
+    /// Voicing in [0, 1] from the normalised comb score (0 at or below `voicing_low`); the
+    /// separator replaces it with the label's periodicity when `periodicity_voicing` is on.
     pub voicing: f64,
     /// Mean peak-minus-valley magnitude over the comb's harmonics (the scale of the input;
     /// relative to the mixture's local level once [`Harmonic::whiten_salience`] has measured it).
@@ -99,6 +103,8 @@ pub struct Harmonic {
     spatial_discount: f64,
     voicing_low: f64,
     voicing_high: f64,
+    /// The periodicity ramp that reads a label's voicing; `None`: the comb's score reads it.
+    periodicity: Option<(f64, f64)>,
     hz_per_bin: f64,
     /// Highest bin (exclusive, fractional) the F0 analysis reads.
     k_max: f64,
@@ -153,6 +159,9 @@ impl Harmonic {
             spatial_discount: cfg.spatial_discount,
             voicing_low: cfg.voicing_low,
             voicing_high: cfg.voicing_high,
+            periodicity: cfg
+                .periodicity_voicing
+                .then_some((cfg.periodicity_low, cfg.periodicity_high)),
             hz_per_bin,
             k_max: cfg.max_frequency_hz / hz_per_bin.max(1e-12),
             k_coarse: COARSE_TOP_HZ / hz_per_bin.max(1e-12),
@@ -240,6 +249,19 @@ impl Harmonic {
     /// is its activity gate).
     pub fn gates_activity(&self) -> bool {
         self.enabled() && self.activity.is_some()
+    }
+
+    /// The voicing read from a label's periodicity `peak` (see [`Periodicity::peak`]); `None`
+    /// when the comb's score reads the voicing.
+    pub fn periodic_voicing(&self, peak: f64) -> Option<f64> {
+        let (lo, hi) = self.periodicity?;
+        let v = ((peak - lo) / (hi - lo)).clamp(0.0, 1.0);
+        Some(if v.is_finite() { v } else { 0.0 })
+    }
+
+    /// Whether a label's voicing is read from its periodicity.
+    pub fn reads_periodicity(&self) -> bool {
+        self.enabled() && self.periodicity.is_some()
     }
 
     /// How much each label's pitch is its own, in [0, 1]: its voicing times the mean, over its

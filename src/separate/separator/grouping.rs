@@ -156,6 +156,8 @@ impl Separator {
             let r = 1.0 - u;
             w.reliability[k] = r * r;
         }
+        let periodic = self.periodic_voicing(i, to_ref);
+        let w = &mut self.work;
         let s = &mut self.streams[i];
         // The gate's smoothing runs whether or not the pitch is known, so its state does not
         // depend on where the pitch comes from.
@@ -188,6 +190,9 @@ impl Separator {
                     ),
                 };
                 s.comb_voicing = p.voicing;
+                if let Some(v) = periodic.filter(|_| p.f0 > 0.0) {
+                    p.voicing = v;
+                }
                 let held = self.harmonic.hold(&mut s.segment, &p, gate);
                 s.held = held > gate;
                 p.voicing *= held;
@@ -208,6 +213,39 @@ impl Separator {
             &mut w.pitch_table,
         );
         p
+    }
+}
+
+impl Separator {
+    /// Stream `i`'s voicing this frame from the periodicity of its whole post-filtered frame
+    /// (of the reference microphone with `to_ref`, else of its beamformer), before the
+    /// harmonic regrouping; `None` when the comb reads the voicing or the whole pitch is known.
+    fn periodic_voicing(&mut self, i: usize, to_ref: bool) -> Option<f64> {
+        let known_whole = matches!(self.streams[i].known_pitch, Some(KnownPitch::Both(_)));
+        if known_whole || !self.harmonic.reads_periodicity() {
+            return None;
+        }
+        let n = self.streams.len();
+        let (ch, rf) = (self.channels, self.reference);
+        let w = &self.work;
+        // `mag` already holds the stream's magnitudes up to the F0 analysis's top bin.
+        let top = self.harmonic.top_bin().min(self.k_hi);
+        let peak = self.periodicity.peak(
+            |k| {
+                if k < top {
+                    return w.mag[k];
+                }
+                let v = if to_ref {
+                    w.y[k * ch + rf]
+                } else {
+                    w.frame_bf[k * n + i]
+                };
+                w.frame_gains[k * n + i] * v.norm_sqr().sqrt()
+            },
+            self.k_lo,
+            self.k_hi,
+        );
+        self.harmonic.periodic_voicing(peak)
     }
 }
 

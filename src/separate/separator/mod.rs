@@ -7,7 +7,7 @@ mod grouping;
 use super::Target;
 use super::config::{ConfigError, SeparatorConfig};
 use super::direct_power::DirectPowerFit;
-use super::harmonic::{Harmonic, HarmonicFit, Pitch};
+use super::harmonic::{Harmonic, HarmonicFit, Periodicity, Pitch};
 use super::lifecycle::Timing;
 use super::null_steering::NullSteering;
 use super::postfilter::{PostFilter, PostState};
@@ -146,6 +146,8 @@ pub struct Separator {
     harmonic: Harmonic,
     /// The harmonic grouping's amplitude fit of the low bins (fits nothing when off).
     harmonic_fit: HarmonicFit,
+    /// Each label's periodicity reader (one, shared).
+    periodicity: Periodicity,
     /// Per microphone group: the direct-path power fit of the harmonic grouping's activity gate
     /// (empty when the gate is off).
     direct: Vec<DirectPowerFit>,
@@ -184,6 +186,7 @@ impl Separator {
             post: PostFilter::new(&cfg.post_filter, 1.0),
             harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0, 1.0),
             harmonic_fit: HarmonicFit::default(),
+            periodicity: Periodicity::new(4, 16000.0, 70.0, 400.0),
             direct: Vec::new(),
             psd: Vec::new(),
             psd_ready: false,
@@ -403,6 +406,7 @@ impl Separator {
         let hcfg = &self.cfg.post_filter.harmonic;
         let fit_top = ((hcfg.fit_below_hz / hz_per_bin).ceil() as usize).min(self.k_hi);
         self.harmonic_fit = HarmonicFit::new(geom.frame, hz_per_bin, fit_top, hcfg.fit_loading);
+        self.periodicity = Periodicity::new(geom.frame, self.fs, hcfg.f0_min_hz, hcfg.f0_max_hz);
         self.direct = if self.harmonic.gates_activity() {
             let low_band = hcfg.activity_low_band;
             self.groups
