@@ -38,26 +38,36 @@ struct ZenohServer {
 }
 
 impl ZenohServer {
+    /// The port is found free by binding it and letting it go, so another test's outgoing
+    /// connection can take it before Zenoh listens there (seen in CI as "Address already in
+    /// use"); a few fresh ports are tried before giving up.
     async fn start(cfg: ServerConfig) -> Self {
-        let port = std::net::TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
-        let endpoint = format!("tcp/127.0.0.1:{port}");
-        let zcfg = ZenohConfig {
-            listen: vec![endpoint.clone()],
-            ..cfg.zenoh.clone()
-        };
+        let zenoh = cfg.zenoh.clone();
         let http = TestServer::start(cfg).await;
-        let transport = ZenohTransport::start(&zcfg, http.registry.clone())
-            .await
-            .unwrap();
-        Self {
-            http,
-            transport,
-            endpoint,
+        let mut last = None;
+        for _ in 0..5 {
+            let port = std::net::TcpListener::bind("127.0.0.1:0")
+                .unwrap()
+                .local_addr()
+                .unwrap()
+                .port();
+            let endpoint = format!("tcp/127.0.0.1:{port}");
+            let zcfg = ZenohConfig {
+                listen: vec![endpoint.clone()],
+                ..zenoh.clone()
+            };
+            match ZenohTransport::start(&zcfg, http.registry.clone()).await {
+                Ok(transport) => {
+                    return Self {
+                        http,
+                        transport,
+                        endpoint,
+                    };
+                }
+                Err(e) => last = Some(e),
+            }
         }
+        panic!("no free port for the Zenoh transport: {last:?}");
     }
 
     async fn stop(self) {
