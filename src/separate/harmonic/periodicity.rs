@@ -90,9 +90,11 @@ impl Periodicity {
     ///
     /// The autocorrelation is the inverse transform of the magnitudes, not of the power: a
     /// generalised autocorrelation (Tolonen and Karjalainen's compression, here 1) in which
-    /// the loud low harmonics, where the array leaks a neighbour most, weigh less. Against
-    /// the power, the magnitudes separated a label's truly voiced frames from its unvoiced
-    /// ones about as well on recorded speech and better on the upper band.
+    /// the loud low harmonics, where the array leaks a neighbour most, weigh less. Read up to
+    /// 4 kHz on a label's spatially filtered output (recorded speech, paper-linear6 seeds
+    /// 1-6), the magnitudes told its talker's voiced frames from the unvoiced ones with an
+    /// area under the ROC curve of 0.865 against 0.840 for the power; compressions 0.5 and
+    /// 0.67 were within 0.005; reading up to 8 kHz raised it to 0.906.
     pub fn peak(&mut self, magnitude: impl Fn(usize) -> f64, lo: usize, hi: usize) -> f64 {
         let zero = Complex::new(0.0, 0.0);
         let hi = hi.min(self.spectrum.len());

@@ -146,7 +146,7 @@ pub struct Separator {
     harmonic: Harmonic,
     /// The harmonic grouping's amplitude fit of the low bins (fits nothing when off).
     harmonic_fit: HarmonicFit,
-    /// Each label's periodicity reader (one, shared).
+    /// The labels' periodicity reader (one for all, as it keeps only scratch between calls).
     periodicity: Periodicity,
     /// Per microphone group: the direct-path power fit of the harmonic grouping's activity gate
     /// (empty when the gate is off).
