@@ -15,11 +15,17 @@ impl Separator {
         let (ch, rf) = (self.channels, self.reference);
         let w = &mut self.work;
         w.pitch.clear();
-        // The F0 analysis reads bins up to its top frequency only; those below k_lo stay zero.
+        // The F0 analysis reads bins up to its top frequency only, the periodicity every bin
+        // the separator processes; those below k_lo stay zero.
         let top = self.harmonic.top_bin().min(self.k_hi);
         let len = top.max(self.k_lo);
+        let mag_len = if self.harmonic.reads_periodicity() {
+            self.k_hi.max(len)
+        } else {
+            len
+        };
         w.mag.clear();
-        w.mag.resize(len, 0.0);
+        w.mag.resize(mag_len, 0.0);
         w.reliability.clear();
         w.reliability.resize(len, 0.0);
         let y = &w.y;
@@ -130,8 +136,9 @@ impl Separator {
     }
 
     /// Stream `i`'s pitch this frame, read from its post-filtered magnitudes (of the reference
-    /// microphone with `to_ref`, else of its beamformer) up to bin `top`, with its activity
-    /// gate folded in and its contest salience measured against the mixture's local level.
+    /// microphone with `to_ref`, else of its beamformer): the F0 up to bin `top`, the voicing
+    /// from the periodicity of all of them when that reads it, with its activity gate folded
+    /// in and its contest salience measured against the mixture's local level.
     fn stream_pitch(&mut self, i: usize, to_ref: bool, top: usize) -> Pitch {
         let n = self.streams.len();
         let (ch, rf) = (self.channels, self.reference);
@@ -141,7 +148,7 @@ impl Separator {
         if w.priors[i] <= 0.0 {
             return Pitch::default();
         }
-        for k in self.k_lo..top {
+        for k in self.k_lo..w.mag.len() {
             let g = w.frame_gains[k * n + i];
             let v = if to_ref {
                 w.y[k * ch + rf]
@@ -149,6 +156,8 @@ impl Separator {
                 w.frame_bf[k * n + i]
             };
             w.mag[k] = g * v.norm_sqr().sqrt();
+        }
+        for k in self.k_lo..top {
             let pairs = &w.pair_unresolved[k * n * n..(k + 1) * n * n];
             // A competitor blinds the stream's F0 reading only as far as it is audible.
             let audibility = &w.audibility;
@@ -156,8 +165,6 @@ impl Separator {
             let r = 1.0 - u;
             w.reliability[k] = r * r;
         }
-        let periodic = self.periodic_voicing(i, to_ref);
-        let w = &mut self.work;
         let s = &mut self.streams[i];
         // The gate's smoothing runs whether or not the pitch is known, so its state does not
         // depend on where the pitch comes from.
@@ -190,8 +197,10 @@ impl Separator {
                     ),
                 };
                 s.comb_voicing = p.voicing;
-                if let Some(v) = periodic.filter(|_| p.f0 > 0.0) {
-                    p.voicing = v;
+                // A voicing without an F0 would mean nothing to the grouping.
+                if p.f0 > 0.0 && self.harmonic.reads_periodicity() {
+                    let peak = self.periodicity.peak(|k| w.mag[k], self.k_lo, w.mag.len());
+                    p.voicing = self.harmonic.periodic_voicing(peak).unwrap_or(p.voicing);
                 }
                 let held = self.harmonic.hold(&mut s.segment, &p, gate);
                 s.held = held > gate;
@@ -213,39 +222,6 @@ impl Separator {
             &mut w.pitch_table,
         );
         p
-    }
-}
-
-impl Separator {
-    /// Stream `i`'s voicing this frame from the periodicity of its whole post-filtered frame
-    /// (of the reference microphone with `to_ref`, else of its beamformer), before the
-    /// harmonic regrouping; `None` when the comb reads the voicing or the whole pitch is known.
-    fn periodic_voicing(&mut self, i: usize, to_ref: bool) -> Option<f64> {
-        let known_whole = matches!(self.streams[i].known_pitch, Some(KnownPitch::Both(_)));
-        if known_whole || !self.harmonic.reads_periodicity() {
-            return None;
-        }
-        let n = self.streams.len();
-        let (ch, rf) = (self.channels, self.reference);
-        let w = &self.work;
-        // `mag` already holds the stream's magnitudes up to the F0 analysis's top bin.
-        let top = self.harmonic.top_bin().min(self.k_hi);
-        let peak = self.periodicity.peak(
-            |k| {
-                if k < top {
-                    return w.mag[k];
-                }
-                let v = if to_ref {
-                    w.y[k * ch + rf]
-                } else {
-                    w.frame_bf[k * n + i]
-                };
-                w.frame_gains[k * n + i] * v.norm_sqr().sqrt()
-            },
-            self.k_lo,
-            self.k_hi,
-        );
-        self.harmonic.periodic_voicing(peak)
     }
 }
 

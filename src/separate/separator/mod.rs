@@ -93,7 +93,9 @@ struct Work {
     frame_unresolved: Vec<f64>,
     /// Per stream: how much it counts as a competitor where another stream reads its F0.
     audibility: Vec<f64>,
-    /// Per-bin scratch of the F0 analysis: a stream's magnitude and the bins' reliability.
+    /// Per-bin scratch of the F0 analysis: a stream's magnitude (over every processed bin when
+    /// the periodicity reads the voicing, else up to the F0 analysis's top) and the bins'
+    /// reliability (up to that top).
     mag: Vec<f64>,
     reliability: Vec<f64>,
     /// Interpolation table of the F0 analysis.
