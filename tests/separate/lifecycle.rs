@@ -43,15 +43,19 @@ fn no_clicks_when_positions_step_and_labels_come_and_go() {
     );
     let cfg = SeparatorConfig::default();
     let (birth, death) = (1.0, 2.5);
-    let r = run(&mixture, &cfg, false, |f, t| {
-        // Tracker steps every 4 frames; the estimate jumps by up to 8 cm at each step.
-        let jitter = Vec3::new(0.08, -0.05, 0.03) * if (f / 4) % 2 == 0 { 1.0 } else { -1.0 };
-        let mut ts = static_targets(&[p0 + jitter, p1], 1.0);
-        if !(birth..death).contains(&t) {
-            ts.truncate(1);
-        }
-        ts
-    });
+    let run_with = |jump: f64| {
+        run(&mixture, &cfg, false, |f, t| {
+            // Tracker steps every 4 frames; the estimate jumps by up to `jump` x 8 cm at each.
+            let sign = if (f / 4) % 2 == 0 { 1.0 } else { -1.0 };
+            let jitter = Vec3::new(0.08, -0.05, 0.03) * (jump * sign);
+            let mut ts = static_targets(&[p0 + jitter, p1], 1.0);
+            if !(birth..death).contains(&t) {
+                ts.truncate(1);
+            }
+            ts
+        })
+    };
+    let (r, steady) = (run_with(1.0), run_with(0.0));
     let input_step = max_step(&mixture.mix[0]);
     for (i, out) in r.out.iter().enumerate() {
         let step = max_step(out);
@@ -61,25 +65,37 @@ fn no_clicks_when_positions_step_and_labels_come_and_go() {
             "label {i}: click of {step}"
         );
     }
-    // No flutter either: while both labels exist the first one's output stays on its source's
-    // image although its estimate jumps every step; alone, its mask is 1 and it is the reference
-    // microphone (the documented behaviour of a lone label with `reference_mic`).
+    // No flutter either: the first label's output is the one it has with a steady estimate,
+    // although its estimate jumps every step; while both labels exist that output stays on its
+    // source's image, and alone its mask is 1 and it is the reference microphone (the
+    // documented behaviour of a lone label with `reference_mic`).
+    let deviation = |x: &[f64], want: &[f64]| {
+        let err: Vec<f64> = x.iter().zip(want).map(|(x, y)| x - y).collect();
+        db(energy(&err) / energy(want))
+    };
     let both = |a: usize, b: usize| -> Vec<f64> { mixture.truth(0)[a..b].to_vec() };
     let alone = |a: usize, b: usize| -> Vec<f64> { mixture.mix[0][a..b].to_vec() };
     type Expect<'a> = &'a dyn Fn(usize, usize) -> Vec<f64>;
-    let windows: [(f64, f64, Expect); 3] =
-        [(0.2, 0.9, &alone), (1.3, 2.4, &both), (3.2, 3.9, &alone)];
-    for (a, b, expect) in windows {
+    // Alone the output is the microphone; with both, the two labels' tones lie below 500 Hz,
+    // which a 10 cm array does not resolve, so the harmonic grouping divides them: about
+    // -20 dB (-19.6 here, and -6.9 to -23 dB for other tone pairs the second source could
+    // play, since a pair without a common F0 in range reads a spurious one). The bound on it
+    // only says the output stays on its source; the flutter bound is the test's point.
+    let windows: [(f64, f64, Expect, f64); 3] = [
+        (0.2, 0.9, &alone, -20.0),
+        (1.3, 2.4, &both, -15.0),
+        (3.2, 3.9, &alone, -20.0),
+    ];
+    for (a, b, expect, bound) in windows {
         let (a, b) = ((a * FS) as usize, (b * FS) as usize);
-        let want = expect(a, b);
-        let err: Vec<f64> = r.out[0][a..b]
-            .iter()
-            .zip(&want)
-            .map(|(x, y)| x - y)
-            .collect();
-        let e = db(energy(&err) / energy(&want));
-        println!("label 0, samples {a}..{b}: error {e:.1} dB");
-        assert!(e < -20.0, "label 0 deviates by {e:.1} dB in {a}..{b}");
+        let e = deviation(&r.out[0][a..b], &expect(a, b));
+        let flutter = deviation(&r.out[0][a..b], &steady.out[0][a..b]);
+        println!("label 0, samples {a}..{b}: error {e:.1} dB, flutter {flutter:.1} dB");
+        assert!(e < bound, "label 0 deviates by {e:.1} dB in {a}..{b}");
+        assert!(
+            flutter < -40.0,
+            "label 0 flutters by {flutter:.1} dB in {a}..{b}"
+        );
     }
     // The second label is silent before its birth and after its fade-out, present in between.
     let born = &r.out[1];
