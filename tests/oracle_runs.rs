@@ -167,6 +167,30 @@ fn the_periodicity_voices_fewer_unvoiced_frames_than_the_comb() {
     );
 }
 
+/// A label's F0 search weighs each candidate's comb by its frame's autocorrelation at the
+/// candidate's period, and so reads more F0s right than by the comb alone. On this 8 s scene
+/// F0 within 3 % 78 → 86 % of the scored frames and gross errors 13 → 6 %; over seeds 1-8 of
+/// the 8 s scene 84.0 → 85.5 % and 10.0 → 9.2 %, with one seed (3) losing 2 points.
+#[test]
+fn the_periodicity_weight_reads_more_f0s_right() {
+    let scene = scene(6);
+    let mut by_comb = PipelineConfig::default();
+    by_comb.separate.post_filter.harmonic.periodicity_weight = 0.0;
+    let (_, comb, _) = oracle_run_with(&scene, by_comb, OfflineOptions::default());
+    let (_, weighed, _) = oracle_run(&scene, OfflineOptions::default());
+    let (comb, weighed) = (comb.expect("scored").mean, weighed.expect("scored").mean);
+    eprintln!("comb {comb:?}\nweighed {weighed:?}");
+    let share = |v: Option<f64>| v.expect("frames scored");
+    assert!(
+        share(weighed.f0_within_tolerance) > share(comb.f0_within_tolerance) + 0.04,
+        "{weighed:?} against {comb:?}"
+    );
+    assert!(
+        share(weighed.gross_error) < 0.7 * share(comb.gross_error),
+        "{weighed:?} against {comb:?}"
+    );
+}
+
 /// Each oracle needs oracle tracks and every truth source's signal, and says so: the error
 /// names the missing flag, then the source without a signal.
 #[test]

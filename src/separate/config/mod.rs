@@ -391,6 +391,10 @@ mod tests {
             "post_filter.harmonic.periodicity_low"
         );
         assert_eq!(
+            field(|c| c.post_filter.harmonic.periodicity_weight = f64::NAN),
+            "post_filter.harmonic.periodicity_weight"
+        );
+        assert_eq!(
             field(|c| c.post_filter.harmonic.f0_max_hz = 50.0),
             "post_filter.harmonic.f0_max_hz"
         );

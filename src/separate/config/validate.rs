@@ -143,6 +143,7 @@ impl HarmonicConfig {
                 "must be above periodicity_low and at most 1",
             ));
         }
+        in_range("periodicity_weight", self.periodicity_weight, 0.0, 16.0)?;
         in_range("register_semitones", self.register_semitones, 0.0, 48.0)?;
         in_range("register_memory_s", self.register_memory_s, 0.01, 3600.0)?;
         in_range(

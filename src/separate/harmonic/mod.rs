@@ -53,6 +53,11 @@ const GRID_STEP: f64 = 0.005;
 /// cost (whole pipeline, uca8: +3 % CPU against the 2 kHz analysis instead of +10 %).
 const COARSE_TOP_HZ: f64 = 2000.0;
 
+/// Added to a label's periodicity at a candidate's period before it weighs the candidate's
+/// comb, so a comb at a period the frame's autocorrelation does not show (negative there, or
+/// a frame too mixed to show any) still counts; floors 0.02 to 0.2 measured alike.
+const PERIODIC_FLOOR: f64 = 0.05;
+
 /// One label's pitch in one frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Pitch {
@@ -105,6 +110,8 @@ pub struct Harmonic {
     voicing_high: f64,
     /// The periodicity ramp that reads a label's voicing; `None`: the comb's score reads it.
     periodicity: Option<(f64, f64)>,
+    /// Exponent of the periodicity's weight on each F0 candidate's comb (0: none).
+    periodicity_weight: f64,
     hz_per_bin: f64,
     /// Highest bin (exclusive, fractional) the F0 analysis reads.
     k_max: f64,
@@ -162,6 +169,7 @@ impl Harmonic {
             periodicity: cfg
                 .periodicity_voicing
                 .then_some((cfg.periodicity_low, cfg.periodicity_high)),
+            periodicity_weight: cfg.periodicity_weight,
             hz_per_bin,
             k_max: cfg.max_frequency_hz / hz_per_bin.max(1e-12),
             k_coarse: COARSE_TOP_HZ / hz_per_bin.max(1e-12),
@@ -259,9 +267,23 @@ impl Harmonic {
         Some(if v.is_finite() { v } else { 0.0 })
     }
 
-    /// Whether a label's voicing is read from its periodicity.
+    /// Whether a label's periodicity is read at all: for its voicing, its F0 search or both.
     pub fn reads_periodicity(&self) -> bool {
-        self.enabled() && self.periodicity.is_some()
+        self.enabled() && (self.periodicity.is_some() || self.periodicity_weight > 0.0)
+    }
+
+    /// The weight of an F0 candidate's comb by the frame's autocorrelation at its period,
+    /// (r + floor)^`periodicity_weight`; 1 everywhere without a frame or a weight.
+    fn periodic_weight<'a>(
+        &self,
+        periodicity: Option<&'a Periodicity>,
+    ) -> impl Fn(f64) -> f64 + 'a {
+        let g = self.periodicity_weight;
+        let read = periodicity.filter(|_| g > 0.0);
+        move |f0: f64| match read {
+            Some(p) => power(p.at(f0).max(0.0) + PERIODIC_FLOOR, g),
+            None => 1.0,
+        }
     }
 
     /// How much each label's pitch is its own, in [0, 1]: its voicing times the mean, over its

@@ -8,6 +8,10 @@
 //! autocorrelation of the label's whole post-filtered frame answers it more directly: its
 //! upper band, which the array resolves, is noise when the talker is unvoiced and periodic
 //! when voiced.
+//!
+//! The same autocorrelation, read at each F0 candidate's period ([`Periodicity::at`]),
+//! weighs the candidate's comb in the F0 search: the comb reads the resolved harmonics bin by
+//! bin, the autocorrelation the whole frame, and the two fail on different frames.
 
 use std::fmt;
 use std::sync::Arc;
@@ -30,6 +34,7 @@ pub struct Periodicity {
     window_acf: Vec<f64>,
     /// Lags (samples) of the highest and lowest F0.
     lags: (usize, usize),
+    sample_rate: f64,
     spectrum: Vec<Complex>,
     acf: Vec<f64>,
     scratch: Vec<Complex>,
@@ -72,12 +77,15 @@ impl Periodicity {
                 if r >= WINDOW_FLOOR { 1.0 / r } else { 0.0 }
             })
             .collect();
+        // Until a frame is read there is no autocorrelation to report.
+        acf.fill(0.0);
         let half = frame / 2;
         let lag = |f0: f64| ((sample_rate / f0.max(1.0)).round() as usize).clamp(1, half);
         Self {
             inverse,
             window_acf,
             lags: (lag(f0_max), lag(f0_min).max(lag(f0_max))),
+            sample_rate,
             spectrum,
             acf,
             scratch,
@@ -122,6 +130,26 @@ impl Periodicity {
             .map(|(r, w)| r * w)
             .fold(0.0, f64::max);
         peak / zero
+    }
+
+    /// The normalised autocorrelation of the frame [`Periodicity::peak`] read last, at the
+    /// period of `f0` (Hz; linear between lags); 0 before any frame, for a silent one and
+    /// outside the F0 range's lags. What the F0 search weighs its candidates by.
+    pub fn at(&self, f0: f64) -> f64 {
+        let zero = self.acf[0];
+        let lag = self.sample_rate / f0;
+        let (a, b) = self.lags;
+        if !(zero > 0.0 && zero.is_finite() && lag >= a as f64 && lag <= b as f64) {
+            return 0.0;
+        }
+        // a <= lag <= b < frame / 2, so both lags are in range.
+        let i = lag as usize;
+        let j = (i + 1).min(b);
+        let (x, y) = (
+            self.acf[i] * self.window_acf[i],
+            self.acf[j] * self.window_acf[j],
+        );
+        (x + (lag - i as f64) * (y - x)) / zero
     }
 }
 
@@ -181,6 +209,26 @@ mod tests {
         // median is 0.4), and unvoiced when the noise is as loud.
         assert!(peaks[2] > 0.3, "{peaks:?}");
         assert!(peaks[3] < 0.2, "{peaks:?}");
+    }
+
+    #[test]
+    fn the_autocorrelation_at_a_period_peaks_at_the_voices_own() {
+        let mut p = reader();
+        assert_eq!(p.at(150.0), 0.0, "no frame read yet");
+        let peak = peak_of(&mut p, &spectrum(&voiced(150.0, 1.0)));
+        // At the voice's own period it is the peak; a semitone off it has fallen well below,
+        // and halfway between harmonics' periods it is lowest; the double period (a
+        // subharmonic) is periodic too, which the comb tells apart.
+        let own = p.at(150.0);
+        assert!((own - peak).abs() < 0.05, "own {own} peak {peak}");
+        assert!(p.at(150.0 * 1.06) < own - 0.2, "{}", p.at(159.0));
+        assert!(p.at(150.0 / 1.5) < 0.2, "{}", p.at(100.0));
+        assert!(p.at(75.0) > 0.7, "{}", p.at(75.0));
+        // Outside the F0 range's lags nothing is read.
+        assert_eq!((p.at(1000.0), p.at(30.0)), (0.0, 0.0));
+        assert_eq!(p.at(f64::NAN), 0.0);
+        let _ = p.peak(|_| 0.0, 1, N / 2 + 1);
+        assert_eq!(p.at(150.0), 0.0, "silence");
     }
 
     #[test]

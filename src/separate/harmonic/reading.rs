@@ -2,7 +2,7 @@
 //! given F0, and the salience re-measured against the mixture's local level.
 
 use super::comb::{COARSE, Comb, REFINED, Score};
-use super::{Harmonic, Pitch, Register, power};
+use super::{Harmonic, Periodicity, Pitch, Register, power};
 use crate::dsp::VoicePitch;
 
 impl Harmonic {
@@ -76,25 +76,28 @@ impl Harmonic {
     /// to `COARSE_TOP_HZ`, then with all of them on the fine grid around the `REFINED` best
     /// coarse ones (a fraction of the exhaustive search's work; the selection score varies
     /// smoothly enough over a coarse step that the exhaustive search's winner lies next to one
-    /// of the best coarse candidates).
+    /// of the best coarse candidates). With the frame's `periodicity` read, each candidate's
+    /// comb is also weighed by the autocorrelation at its period.
     pub fn pitch(
         &self,
         mag: &[f64],
         reliability: &[f64],
         register: &Register,
+        periodicity: Option<&Periodicity>,
         scratch: &mut Vec<[f64; 4]>,
     ) -> Pitch {
         let Some(comb) = Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) else {
             return Pitch::default();
         };
-        let prefer = self.preference(register);
+        let (register, periodic) = (self.preference(register), self.periodic_weight(periodicity));
+        let prefer = |f0: f64| register(f0) * periodic(f0);
         let mut best = (0.0, Score::default(), 0.0);
         for range in self.refined_ranges(&comb, &prefer) {
-            comb.best(&self.candidates[range], &prefer, &mut best);
+            comb.best(&self.candidates[range], prefer, &mut best);
         }
         let mut p = self.pitch_of(best.0, best.1);
         if p.f0 > 0.0 {
-            p.register_fit = power(prefer(p.f0), self.register_ownership);
+            p.register_fit = power(register(p.f0), self.register_ownership);
         }
         p
     }
@@ -202,8 +205,9 @@ impl Harmonic {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{N, harmonic, spectrum, voiced};
+    use super::super::tests::{FS, N, harmonic, spectrum, voiced};
     use super::*;
+    use crate::separate::config::HarmonicConfig;
 
     /// The analysis, full reliability, a voice's magnitudes at 150 Hz and comb scratch.
     fn voice_at_150_hz() -> (Harmonic, Vec<f64>, Vec<f64>, Vec<[f64; 4]>) {
@@ -219,7 +223,7 @@ mod tests {
         assert_eq!((right.f0, right.voicing), (150.0, 0.8));
         // The comb measured at the known F0 is the one the search would find; at a pitch the
         // spectrum does not carry it is far weaker.
-        let searched = h.pitch(&mag, &rel, &Register::default(), &mut scratch);
+        let searched = h.pitch(&mag, &rel, &Register::default(), None, &mut scratch);
         assert!(
             (right.salience / searched.salience - 1.0).abs() < 0.05,
             "{right:?} {searched:?}"
@@ -237,7 +241,7 @@ mod tests {
         let (h, rel, mag, mut scratch) = voice_at_150_hz();
         // At the voice's F0 the comb is what the search finds, voicing and salience alike.
         let right = h.pitch_at(&mag, &rel, 150.0, &mut scratch);
-        let searched = h.pitch(&mag, &rel, &Register::default(), &mut scratch);
+        let searched = h.pitch(&mag, &rel, &Register::default(), None, &mut scratch);
         assert_eq!(right.f0, 150.0);
         assert!(
             (right.voicing - searched.voicing).abs() < 0.05
@@ -252,5 +256,38 @@ mod tests {
         for f0 in [0.0, -150.0, f64::NAN] {
             assert_eq!(h.pitch_at(&mag, &rel, f0, &mut scratch), Pitch::default());
         }
+    }
+
+    #[test]
+    fn of_two_combs_the_one_at_the_frames_periodic_lag_wins() {
+        // Two voices equally strong in the comb's spectrum; the autocorrelation (here read from
+        // each voice alone, to make the point) decides between them, and without a weight or
+        // without a frame read the search is the comb's alone.
+        let h = harmonic();
+        let rel = vec![1.0; N / 2 + 1];
+        let (a, b) = (voiced(150.0, 1.0), voiced(200.0, 1.0));
+        let both: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + y).collect();
+        let mag = spectrum(&both);
+        let mut per = Periodicity::new(N, FS, 70.0, 400.0);
+        let search = |h: &Harmonic, per: Option<&Periodicity>| {
+            h.pitch(&mag, &rel, &Register::default(), per, &mut Vec::new())
+                .f0
+        };
+        let alone = search(&h, None);
+        for f0 in [150.0, 200.0] {
+            let own = spectrum(&voiced(f0, 1.0));
+            let _ = per.peak(|k| own[k], 1, own.len());
+            let got = search(&h, Some(&per));
+            assert!(
+                (got / f0 - 1.0).abs() < 0.01,
+                "{f0} Hz periodic: read {got}"
+            );
+        }
+        let cfg = HarmonicConfig {
+            periodicity_weight: 0.0,
+            ..HarmonicConfig::default()
+        };
+        let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+        assert_eq!(search(&off, Some(&per)), alone);
     }
 }

@@ -73,7 +73,7 @@ fn coarse_to_fine_search_finds_the_exhaustive_searchs_pitch() {
             .collect();
         let mag = spectrum(&x);
         let (p, q) = (
-            h.pitch(&mag, &rel, &Register::default(), &mut Vec::new()),
+            h.pitch(&mag, &rel, &Register::default(), None, &mut Vec::new()),
             h.pitch_exhaustive(&mag, &rel),
         );
         cases += 1;
@@ -96,7 +96,7 @@ fn register_learns_a_labels_f0_and_keeps_it_through_a_neighbours_leak() {
     let own = spectrum(&voiced(104.0, 1.0));
     let mut reg = Register::default();
     for _ in 0..16 {
-        let p = h.pitch(&own, &rel, &reg, &mut Vec::new());
+        let p = h.pitch(&own, &rel, &reg, None, &mut Vec::new());
         assert!((p.f0 / 104.0 - 1.0).abs() < 0.01, "{}", p.f0);
         h.observe(&mut reg, &p, 1.0);
     }
@@ -108,9 +108,9 @@ fn register_learns_a_labels_f0_and_keeps_it_through_a_neighbours_leak() {
             .map(|(a, b)| a + b)
             .collect();
         let mag = spectrum(&mixed);
-        let fresh = h.pitch(&mag, &rel, &Register::default(), &mut Vec::new());
+        let fresh = h.pitch(&mag, &rel, &Register::default(), None, &mut Vec::new());
         assert!((fresh.f0 / neighbour - 1.0).abs() < 0.01, "{}", fresh.f0);
-        let held = h.pitch(&mag, &rel, &reg, &mut Vec::new());
+        let held = h.pitch(&mag, &rel, &reg, None, &mut Vec::new());
         assert!((held.f0 / 104.0 - 1.0).abs() < 0.01, "{}", held.f0);
     }
     // Without evidence the register forgets: after its memory (5 s) it has lost most of
@@ -128,6 +128,7 @@ fn register_learns_a_labels_f0_and_keeps_it_through_a_neighbours_leak() {
         &spectrum(&voiced(150.0, 1.0)),
         &rel,
         &before,
+        None,
         &mut Vec::new(),
     );
     assert!((far.f0 / 150.0 - 1.0).abs() < 0.01, "{}", far.f0);
@@ -156,8 +157,8 @@ fn of_two_labels_reading_one_f0_the_one_whose_register_holds_it_keeps_its_harmon
     // 150 Hz: the talker's reverberation reaches the neighbour's output as strongly as its
     // own, so both labels read 200 Hz with the same salience.
     let mag = spectrum(&voiced(200.0, 1.0));
-    let talker = h.pitch(&mag, &rel, &register_at(&h, 200.0), &mut Vec::new());
-    let silent = h.pitch(&mag, &rel, &register_at(&h, 150.0), &mut Vec::new());
+    let talker = h.pitch(&mag, &rel, &register_at(&h, 200.0), None, &mut Vec::new());
+    let silent = h.pitch(&mag, &rel, &register_at(&h, 150.0), None, &mut Vec::new());
     assert!((talker.f0 / 200.0 - 1.0).abs() < 0.01, "{}", talker.f0);
     assert!((silent.f0 / 200.0 - 1.0).abs() < 0.01, "{}", silent.f0);
     assert!(
@@ -195,8 +196,20 @@ fn of_two_labels_reading_one_f0_the_one_whose_register_holds_it_keeps_its_harmon
     };
     let flat = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
     let tied = [
-        flat.pitch(&mag, &rel, &register_at(&flat, 200.0), &mut Vec::new()),
-        flat.pitch(&mag, &rel, &register_at(&flat, 150.0), &mut Vec::new()),
+        flat.pitch(
+            &mag,
+            &rel,
+            &register_at(&flat, 200.0),
+            None,
+            &mut Vec::new(),
+        ),
+        flat.pitch(
+            &mag,
+            &rel,
+            &register_at(&flat, 150.0),
+            None,
+            &mut Vec::new(),
+        ),
     ];
     for e in claims(&flat, &tied) {
         assert!(e[0] > 0.8 && e[1] > 0.3, "{e:?}");
@@ -225,8 +238,8 @@ fn register_off_leaves_the_search_alone() {
         );
     }
     let mag = spectrum(&voiced(212.0, 1.0));
-    let a = h.pitch(&mag, &rel, &reg, &mut Vec::new());
-    let b = h.pitch(&mag, &rel, &Register::default(), &mut Vec::new());
+    let a = h.pitch(&mag, &rel, &reg, None, &mut Vec::new());
+    let b = h.pitch(&mag, &rel, &Register::default(), None, &mut Vec::new());
     assert_eq!(a, b);
 }
 
@@ -239,12 +252,12 @@ fn f0_of_a_harmonic_signal_is_found_from_its_upper_band() {
         let rel: Vec<f64> = (0..mag.len())
             .map(|k| f64::from(u8::from(k as f64 * FS / N as f64 >= 500.0)))
             .collect();
-        let p = h.pitch(&mag, &rel, &Register::default(), &mut Vec::new());
+        let p = h.pitch(&mag, &rel, &Register::default(), None, &mut Vec::new());
         assert!((p.f0 / f0 - 1.0).abs() < 0.01, "{f0}: {}", p.f0);
         assert!(p.voicing > 0.9, "{f0}: voicing {}", p.voicing);
         // The same harmonics leaking at a tenth into another label are not that label's.
         let leak: Vec<f64> = mag.iter().map(|m| 0.1 * m).collect();
-        let q = h.pitch(&leak, &rel, &Register::default(), &mut Vec::new());
+        let q = h.pitch(&leak, &rel, &Register::default(), None, &mut Vec::new());
         let mut own = [0.0; 2];
         h.ownership(&[p, q], &mut own);
         assert!(own[0] > 0.9 && own[1] < 0.02, "{own:?}");
@@ -258,6 +271,7 @@ fn f0_of_a_harmonic_signal_is_found_from_its_upper_band() {
                 &spectrum(&noise),
                 &vec![1.0; N / 2 + 1],
                 &Register::default(),
+                None,
                 &mut Vec::new(),
             )
             .voicing
@@ -279,7 +293,7 @@ fn a_subharmonic_leak_does_not_own_the_louder_labels_harmonics() {
     // comb passes through every harmonic of 220 Hz (and between them, where nothing is).
     let mag = spectrum(&voiced(220.0, 1.0));
     let all = vec![1.0; mag.len()];
-    let p = h.pitch(&mag, &all, &Register::default(), &mut Vec::new());
+    let p = h.pitch(&mag, &all, &Register::default(), None, &mut Vec::new());
     assert!((p.f0 / 220.0 - 1.0).abs() < 0.01, "{}", p.f0);
     let ghost = Pitch {
         f0: 110.0,
@@ -459,7 +473,7 @@ fn of_two_labels_reading_one_f0_the_upper_harmonics_decide_whose_it_is() {
     let (mut whitened, mut scratch) = (Vec::new(), Vec::new());
     let mut pitches = Vec::new();
     for mag in [&first, &second] {
-        let mut p = h.pitch(mag, &rel, &reg, &mut scratch);
+        let mut p = h.pitch(mag, &rel, &reg, None, &mut scratch);
         assert!((p.f0 / 200.0 - 1.0).abs() < 0.02, "{p:?}");
         let raw = p.salience;
         h.whiten_salience(&mut p, mag, &level, &rel, &mut whitened, &mut scratch);

@@ -6,7 +6,7 @@
 //! still takes it. The pass is causal: it adds no delay.
 
 use super::comb::{Comb, Score};
-use super::{Harmonic, Pitch, Register, power};
+use super::{Harmonic, Periodicity, Pitch, Register, power};
 
 /// Below this fraction of the frame's best selection score a candidate's evidence stops
 /// falling: a comb that reads nothing there is unlikely, not impossible.
@@ -64,7 +64,8 @@ impl Harmonic {
     /// The label's pitch this frame: the pitch of `mag` (read as [`Harmonic::pitch`] reads it) as
     /// the continuation of the label's `track`, or searched in this frame alone
     /// ([`Harmonic::pitch`]) with tracking off. A candidate's evidence is the log of its selection
-    /// score (times the register's preference) relative to the frame's best; a path's score adds
+    /// score (times the register's preference and the periodicity's weight, as
+    /// [`Harmonic::pitch`] weighs it) relative to the frame's best; a path's score adds
     /// its frames' evidence less `transition`'s cost of each change of F0, scaled by the voicing of
     /// the weaker of the two frames (an unvoiced frame binds nothing). The pitch is the candidate
     /// that ends the best path. Scored are the candidates [`Harmonic::pitch`] refines and those a
@@ -75,16 +76,18 @@ impl Harmonic {
         mag: &[f64],
         reliability: &[f64],
         register: &Register,
+        periodicity: Option<&Periodicity>,
         track: &mut PitchTrack,
         scratch: &mut Vec<[f64; 4]>,
     ) -> Pitch {
         let Some(transition) = &self.transition else {
-            return self.pitch(mag, reliability, register, scratch);
+            return self.pitch(mag, reliability, register, periodicity, scratch);
         };
         let Some(comb) = Comb::new(mag, reliability, self.k_max, self.hz_per_bin, scratch) else {
             return Pitch::default();
         };
-        let prefer = self.preference(register);
+        let (register, periodic) = (self.preference(register), self.periodic_weight(periodicity));
+        let prefer = |f0: f64| register(f0) * periodic(f0);
         let n = self.candidates.len();
         let reach = transition.cost.len() - 1;
         track.combs.clear();
@@ -140,7 +143,7 @@ impl Harmonic {
         track.last = Some(at);
         let mut p = self.pitch_of(self.candidates[at], track.combs[at]);
         if p.f0 > 0.0 {
-            p.register_fit = power(prefer(p.f0), self.register_ownership);
+            p.register_fit = power(register(p.f0), self.register_ownership);
         }
         p
     }
@@ -189,8 +192,11 @@ mod tests {
             let rel = vec![1.0; mag.len()];
             let reg = Register::default();
             let mut scratch = Vec::new();
-            tracked.push(h.next_pitch(&mag, &rel, &reg, &mut track, &mut scratch).f0);
-            alone.push(h.pitch(&mag, &rel, &reg, &mut scratch).f0);
+            tracked.push(
+                h.next_pitch(&mag, &rel, &reg, None, &mut track, &mut scratch)
+                    .f0,
+            );
+            alone.push(h.pitch(&mag, &rel, &reg, None, &mut scratch).f0);
         }
         (tracked, alone)
     }

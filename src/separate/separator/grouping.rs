@@ -136,9 +136,10 @@ impl Separator {
     }
 
     /// Stream `i`'s pitch this frame, read from its post-filtered magnitudes (of the reference
-    /// microphone with `to_ref`, else of its beamformer): the F0 up to bin `top`, the voicing
-    /// from the periodicity of all of them when that reads it, with its activity gate folded
-    /// in and its contest salience measured against the mixture's local level.
+    /// microphone with `to_ref`, else of its beamformer): the F0 from its comb up to bin `top`,
+    /// each candidate weighed by the periodicity of all of them, the voicing from that
+    /// periodicity, with its activity gate folded in and its contest salience measured
+    /// against the mixture's local level (each part as far as the settings ask for it).
     fn stream_pitch(&mut self, i: usize, to_ref: bool, top: usize) -> Pitch {
         let n = self.streams.len();
         let (ch, rf) = (self.channels, self.reference);
@@ -183,6 +184,12 @@ impl Separator {
                 p
             }
             known => {
+                // The frame's periodicity weighs the F0 search's candidates and reads the voicing.
+                let peak = self
+                    .harmonic
+                    .reads_periodicity()
+                    .then(|| self.periodicity.peak(|k| w.mag[k], self.k_lo, w.mag.len()));
+                let periodicity = peak.map(|_| &self.periodicity);
                 let mut p = match known {
                     Some(KnownPitch::F0(f0)) => {
                         self.harmonic
@@ -192,14 +199,14 @@ impl Separator {
                         &w.mag,
                         &w.reliability,
                         &s.register,
+                        periodicity,
                         &mut s.pitch_track,
                         &mut w.pitch_table,
                     ),
                 };
                 s.comb_voicing = p.voicing;
                 // A voicing without an F0 would mean nothing to the grouping.
-                if p.f0 > 0.0 && self.harmonic.reads_periodicity() {
-                    let peak = self.periodicity.peak(|k| w.mag[k], self.k_lo, w.mag.len());
+                if let Some(peak) = peak.filter(|_| p.f0 > 0.0) {
                     p.voicing = self.harmonic.periodic_voicing(peak).unwrap_or(p.voicing);
                 }
                 let held = self.harmonic.hold(&mut s.segment, &p, gate);
