@@ -110,6 +110,7 @@ impl PostFilterConfig {
         in_range("untracked_margin", self.untracked_margin, 1.0, 1000.0)?;
         in_range("noise_rise_db_per_s", self.noise_rise_db_per_s, 0.01, 100.0)?;
         in_range("presence_floor", self.presence_floor, 1e-3, 1.0)?;
+        in_range("demix_below_hz", self.demix_below_hz, 0.0, 1e6)?;
         self.harmonic.validate().map_err(|e| e.within("harmonic"))
     }
 }

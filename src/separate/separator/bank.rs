@@ -64,6 +64,8 @@ impl Separator {
         self.size_work();
         let n = self.streams.len();
         self.work.pair_unresolved.resize(self.bins * n * n, 0.0);
+        self.work.cross.resize(self.k_demix * n * n, 0.0);
+        self.work.demixed.resize(n, 0.0);
     }
 
     /// Each stream's microphone group, with its adaptive state sized (and reset on a change).

@@ -100,6 +100,19 @@ impl Separator {
                         w.fixed[i] = w.ns_out[i];
                     }
                 }
+                if w.rebuild[g] && k < self.k_demix {
+                    // Each beamformer's response toward each label: its outputs for the
+                    // label's steering vector as the snapshot.
+                    let cross = &mut w.cross[k * n * n..(k + 1) * n * n];
+                    for j in 0..n {
+                        ns.outputs(&w.walk[g], m, &w.walk[g][j * m..(j + 1) * m], &mut w.ns_out);
+                        for (i, s) in self.streams.iter().enumerate() {
+                            if s.group == g {
+                                cross[i * n + j] = w.ns_out[i].norm_sqr();
+                            }
+                        }
+                    }
+                }
             } else {
                 for (i, s) in self.streams.iter_mut().enumerate() {
                     if s.group != g {
@@ -259,11 +272,22 @@ impl Separator {
             *p = s.post[k];
         }
         let yref = w.y[k * self.channels + self.reference];
+        // The cross-responses are the fixed branch's, computed where every label shares its
+        // group's beamformers.
+        let fixed_branch = matches!(
+            self.cfg.beamformer,
+            BeamformerKind::Gsc | BeamformerKind::NullSteering
+        );
+        let demix_by = (k < self.k_demix
+            && fixed_branch
+            && (0..self.groups.len()).all(|g| !w.active[g] || w.shared[g]))
+        .then(|| (&w.cross[k * n * n..(k + 1) * n * n], &mut w.demixed[..n]));
         self.post.gains(
             &w.bf,
             &w.priors,
             &mut w.post,
             (yref, &mut self.ref_power[k]),
+            demix_by,
             &mut w.gains,
         );
         for (s, p) in self.streams.iter_mut().zip(&w.post) {

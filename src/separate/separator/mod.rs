@@ -77,6 +77,12 @@ struct Work {
     /// competitor (harmonic grouping); recomputed only when the steering on the stream's group
     /// moved (`rebuild`).
     pair_unresolved: Vec<f64>,
+    /// Per bin below the demixing's top, stream and label: the power response of the stream's
+    /// fixed beamformer toward the label's steering; recomputed with the beamformers
+    /// (`rebuild`).
+    cross: Vec<f64>,
+    /// The labels' demixed powers at the current bin.
+    demixed: Vec<f64>,
     /// The canceller's forgetting per update this frame.
     rls_forgetting: f64,
     /// Per stream: the bound on the canceller's squared norm this frame.
@@ -142,6 +148,8 @@ pub struct Separator {
     bins: usize,
     k_lo: usize,
     k_hi: usize,
+    /// One past the last bin whose post-filter demixes the beamformers' cross-responses.
+    k_demix: usize,
     domega: f64,
     timing: Timing,
     post: PostFilter,
@@ -179,6 +187,7 @@ impl Separator {
             bins: 0,
             k_lo: 0,
             k_hi: 0,
+            k_demix: 0,
             domega: 0.0,
             timing: Timing {
                 fade_in: 0,
@@ -401,6 +410,8 @@ impl Separator {
         self.k_lo = ((self.cfg.min_frequency_hz / hz_per_bin).ceil() as usize).min(bins);
         self.k_hi = ((hi / hz_per_bin).floor() as usize + 1).clamp(self.k_lo, bins);
         self.domega = 2.0 * std::f64::consts::PI * hz_per_bin;
+        self.k_demix =
+            ((self.cfg.post_filter.demix_below_hz / hz_per_bin).ceil() as usize).min(self.k_hi);
         let frames_per_s = self.fs / geom.hop as f64;
         self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
         self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
