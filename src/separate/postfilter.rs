@@ -133,8 +133,7 @@ impl PostFilter {
             }
             PostFilterKind::Wiener => {
                 let demixed = demix_by.and_then(|(cross, out)| {
-                    demix(cross, state, out);
-                    out.iter().all(|v| v.is_finite()).then_some(&*out)
+                    (demix(cross, state, out) && out.iter().all(|v| v.is_finite())).then_some(&*out)
                 });
                 let a = self.exponent;
                 let pow = |x: f64| {
@@ -187,17 +186,15 @@ const DEMIX_TOLERANCE: f64 = 1e-12;
 /// The labels' powers phi >= 0 whose mix through the beamformers' power cross-responses
 /// `cross` (row-major, n x n: row i is label i's beamformer's power response toward each
 /// label's steering) best explains their smoothed output powers in `state` (least squares,
-/// projected coordinate descent from the output powers), written to `out`.
-pub fn demix(cross: &[f64], state: &[PostState], out: &mut [f64]) {
+/// projected coordinate descent from the output powers), written to `out`. False, with `out`
+/// untouched, when `cross` is too short or there are more than `MAX_DEMIXED` labels.
+pub fn demix(cross: &[f64], state: &[PostState], out: &mut [f64]) -> bool {
     let n = state.len().min(out.len());
-    if cross.len() < n * n {
-        return;
+    if cross.len() < n * n || n > MAX_DEMIXED {
+        return false;
     }
     // Residuals p - R phi, kept up to date as each coordinate moves.
     let mut residual = [0.0; MAX_DEMIXED];
-    if n > MAX_DEMIXED {
-        return;
-    }
     for (o, s) in out.iter_mut().zip(state) {
         *o = s.power;
     }
@@ -232,6 +229,7 @@ pub fn demix(cross: &[f64], state: &[PostState], out: &mut [f64]) {
             break;
         }
     }
+    true
 }
 
 /// Most labels the demixing handles at a bin (more leave the powers as they are).
@@ -397,7 +395,7 @@ mod tests {
             s.power = (0..3).map(|j| CROSS_100_HZ[i * 3 + j] * phi[j]).sum();
         }
         let mut out = [0.0; 3];
-        demix(&CROSS_100_HZ, &st, &mut out);
+        assert!(demix(&CROSS_100_HZ, &st, &mut out));
         for (o, p) in out.iter().zip(phi) {
             assert!((o - p).abs() < 1e-6, "{out:?}");
         }
@@ -439,13 +437,15 @@ mod tests {
         // Where the beamformers null each other (identity) nothing changes, and a talker
         // heard by all in proportion to the responses is found whole.
         let eye = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-        demix(&eye, &st, &mut out);
+        assert!(demix(&eye, &st, &mut out));
         for (o, s) in out.iter().zip(&st) {
             assert!((o - s.power).abs() < 1e-12);
         }
-        // Too short a matrix leaves the scratch as it was.
+        // Too short a matrix leaves the scratch as it was, says so, and the gains then use
+        // the raw powers rather than whatever the scratch held.
         let mut kept = [7.0; 3];
-        demix(&CROSS_100_HZ[..4], &st, &mut kept);
+        assert!(!demix(&CROSS_100_HZ[..4], &st, &mut kept));
         assert_eq!(kept, [7.0; 3]);
+        assert_eq!(gains_with(Some((&CROSS_100_HZ[..4], &mut kept))), raw);
     }
 }
