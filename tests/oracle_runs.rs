@@ -6,7 +6,7 @@
 //! ceiling of any mask there). The separator's pitch (`pitch.jsonl`) is scored beside them.
 
 use avsep::eval::audio::AudioReport;
-use avsep::eval::pitch::PitchReport;
+use avsep::eval::pitch::{PitchFigures, PitchReport};
 use avsep::eval::{EvalConfig, evaluate};
 use avsep::pipeline::PipelineConfig;
 use avsep::pipeline::offline::{OfflineOptions, ProcessError, RunSummary, process_scene};
@@ -48,6 +48,21 @@ fn oracle_run_with(
     let output = Output::load(out.path(), &scene.layout).expect("output loads");
     let report = evaluate(scene, &output, &EvalConfig::default()).expect("evaluates");
     (report.audio.expect("audio scored"), report.pitch, summary)
+}
+
+/// The mean pitch figures of an oracle-track run on `scene` with one setting changed by `off`,
+/// and of one with the defaults.
+fn pitch_without_and_with(
+    scene: &Scene,
+    off: impl FnOnce(&mut PipelineConfig),
+) -> (PitchFigures, PitchFigures) {
+    let mut without = PipelineConfig::default();
+    off(&mut without);
+    let (_, a, _) = oracle_run_with(scene, without, OfflineOptions::default());
+    let (_, b, _) = oracle_run(scene, OfflineOptions::default());
+    let (a, b) = (a.expect("scored").mean, b.expect("scored").mean);
+    eprintln!("without {a:?}\nwith {b:?}");
+    (a, b)
 }
 
 fn improvement(audio: &AudioReport) -> f64 {
@@ -149,13 +164,9 @@ fn the_true_voicing_or_the_true_f0_alone_is_handed_over() {
 /// with oracle tracks 0.12 → 0.055 and 0.80 → 0.74).
 #[test]
 fn the_periodicity_voices_fewer_unvoiced_frames_than_the_comb() {
-    let scene = scene(1);
-    let mut by_comb = PipelineConfig::default();
-    by_comb.separate.post_filter.harmonic.periodicity_voicing = false;
-    let (_, comb, _) = oracle_run_with(&scene, by_comb, OfflineOptions::default());
-    let (_, periodic, _) = oracle_run(&scene, OfflineOptions::default());
-    let (comb, periodic) = (comb.expect("scored").mean, periodic.expect("scored").mean);
-    eprintln!("comb {comb:?}\nperiodicity {periodic:?}");
+    let (comb, periodic) = pitch_without_and_with(&scene(1), |c| {
+        c.separate.post_filter.harmonic.periodicity_voicing = false;
+    });
     let share = |v: Option<f64>| v.expect("frames scored");
     assert!(
         share(periodic.false_voicing) < 0.75 * share(comb.false_voicing),
@@ -173,13 +184,9 @@ fn the_periodicity_voices_fewer_unvoiced_frames_than_the_comb() {
 /// the 8 s scene 84.0 → 85.5 % and 10.0 → 9.2 %, with one seed (3) losing 2 points.
 #[test]
 fn the_periodicity_weight_reads_more_f0s_right() {
-    let scene = scene(6);
-    let mut by_comb = PipelineConfig::default();
-    by_comb.separate.post_filter.harmonic.periodicity_weight = 0.0;
-    let (_, comb, _) = oracle_run_with(&scene, by_comb, OfflineOptions::default());
-    let (_, weighed, _) = oracle_run(&scene, OfflineOptions::default());
-    let (comb, weighed) = (comb.expect("scored").mean, weighed.expect("scored").mean);
-    eprintln!("comb {comb:?}\nweighed {weighed:?}");
+    let (comb, weighed) = pitch_without_and_with(&scene(6), |c| {
+        c.separate.post_filter.harmonic.periodicity_weight = 0.0;
+    });
     let share = |v: Option<f64>| v.expect("frames scored");
     assert!(
         share(weighed.f0_within_tolerance) > share(comb.f0_within_tolerance) + 0.04,
