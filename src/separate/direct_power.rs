@@ -23,7 +23,7 @@
 //! against 0.77 for the summed-power share, recorded speech on paper-linear6 seeds 1-36 0.86
 //! against 0.79; any talker against a silent label 0.96 against 0.93 and 0.97 against 0.95.
 
-use super::cholesky;
+use super::nnls::Nnls;
 use crate::dsp::Complex;
 use crate::geometry::Vec3;
 
@@ -50,10 +50,6 @@ const BIN_STRIDE: usize = 4;
 
 /// Smoothing per frame of the fit's right-hand side (the snapshot covariance it sees).
 const FEATURE_SMOOTHING: f64 = 0.3;
-
-/// Ridge on the Gram matrix's diagonal, relative to it, so two collinear labels split their
-/// power instead of making the system singular.
-const RIDGE: f64 = 1e-6;
 
 /// The fit on one microphone group.
 #[derive(Debug, Clone, Default)]
@@ -279,136 +275,6 @@ fn quadratic(g: &[f64], x: &[Complex], m: usize) -> f64 {
         acc += row[i] * xi.norm_sqr() + 2.0 * cross;
     }
     acc
-}
-
-/// Non-negative least squares on the normal equations (Lawson-Hanson active set) for a few
-/// unknowns: minimises x^T K x - 2 b^T x over x >= 0 for a symmetric positive semi-definite K.
-#[derive(Debug, Clone, Default)]
-struct Nnls {
-    x: Vec<f64>,
-    z: Vec<f64>,
-    passive: Vec<bool>,
-    sub: Vec<f64>,
-    idx: Vec<usize>,
-    rhs: Vec<f64>,
-}
-
-impl Nnls {
-    /// The solution for the `n x n` matrix `k` (row-major) and right-hand side `b`, starting
-    /// from the `support` (bit j: x_j > 0; used for n <= 32) of a similar problem, which
-    /// it is set to on return.
-    fn solve(&mut self, k: &[f64], b: &[f64], n: usize, support: &mut u32) -> &[f64] {
-        self.x.clear();
-        self.x.resize(n, 0.0);
-        self.z.clear();
-        self.z.resize(n, 0.0);
-        self.passive.clear();
-        self.passive.resize(n, false);
-        let scale = (0..n).map(|i| k[i * n + i]).fold(0.0, f64::max);
-        if !(scale > 0.0 && scale.is_finite()) {
-            return &self.x;
-        }
-        let tol = 1e-12 * b.iter().fold(0.0f64, |a, v| a.max(v.abs())).max(1e-300);
-        self.warm_start(k, b, n, *support);
-        'grow: for _ in 0..3 * n {
-            // The most negative gradient among the variables held at zero enters.
-            let mut best = None;
-            for j in (0..n).filter(|&j| !self.passive[j]) {
-                let g = b[j] - (0..n).map(|i| k[j * n + i] * self.x[i]).sum::<f64>();
-                if g > tol && best.is_none_or(|(_, v)| g > v) {
-                    best = Some((j, g));
-                }
-            }
-            let Some((enter, _)) = best else {
-                break;
-            };
-            self.passive[enter] = true;
-            // Each pass either accepts z or drops at least one variable, so n passes suffice.
-            for _ in 0..=n {
-                if !self.solve_passive(k, b, n) {
-                    self.passive[enter] = false;
-                    break 'grow;
-                }
-                if (0..n).all(|j| !self.passive[j] || self.z[j] > 0.0) {
-                    self.x.copy_from_slice(&self.z);
-                    break;
-                }
-                // Step from x toward z until the first passive variable reaches zero; that one
-                // (and any other at zero) leaves the passive set, set to exactly zero so that
-                // rounding cannot keep it in.
-                let mut step = (1.0f64, None);
-                for j in (0..n).filter(|&j| self.passive[j] && self.z[j] <= 0.0) {
-                    let d = self.x[j] - self.z[j];
-                    let a = if d > 0.0 { self.x[j] / d } else { 0.0 };
-                    if a < step.0 || step.1.is_none() {
-                        step = (a.min(step.0), Some(j));
-                    }
-                }
-                let (alpha, blocking) = step;
-                for j in 0..n {
-                    self.x[j] += alpha * (self.z[j] - self.x[j]);
-                    if self.passive[j] && (Some(j) == blocking || self.x[j] <= 0.0) {
-                        self.passive[j] = false;
-                        self.x[j] = 0.0;
-                    }
-                }
-                if !self.passive.iter().any(|&p| p) {
-                    break;
-                }
-            }
-        }
-        *support = (0..n.min(32))
-            .filter(|&j| self.x[j] > 0.0)
-            .fold(0, |m, j| m | (1 << j));
-        &self.x
-    }
-
-    /// Starts from the solution on `support`, shrunk until it is positive (any feasible point
-    /// with its support passive is a valid start of the active-set iteration).
-    fn warm_start(&mut self, k: &[f64], b: &[f64], n: usize, support: u32) {
-        for (j, p) in self.passive.iter_mut().enumerate() {
-            *p = j < 32 && support & (1 << j) != 0;
-        }
-        while self.passive.iter().any(|&p| p) {
-            if !self.solve_passive(k, b, n) {
-                self.passive.fill(false);
-                return;
-            }
-            if (0..n).all(|j| !self.passive[j] || self.z[j] > 0.0) {
-                self.x.copy_from_slice(&self.z);
-                return;
-            }
-            for (p, z) in self.passive.iter_mut().zip(&self.z) {
-                *p &= *z > 0.0;
-            }
-        }
-    }
-
-    /// z = the unconstrained solution on the passive set (zero elsewhere), by Cholesky with a
-    /// small ridge; false when the system is not positive definite or the solution not finite.
-    fn solve_passive(&mut self, k: &[f64], b: &[f64], n: usize) -> bool {
-        self.idx.clear();
-        self.idx.extend((0..n).filter(|&j| self.passive[j]));
-        let p = self.idx.len();
-        self.sub.clear();
-        self.rhs.clear();
-        for &i in &self.idx {
-            for &j in &self.idx {
-                let ridge = if i == j { RIDGE * k[i * n + i] } else { 0.0 };
-                self.sub.push(k[i * n + j] + ridge);
-            }
-            self.rhs.push(b[i]);
-        }
-        if !cholesky::factor(&mut self.sub, p) {
-            return false;
-        }
-        cholesky::solve(&self.sub, p, &mut self.rhs);
-        self.z.fill(0.0);
-        for (&j, v) in self.idx.iter().zip(&self.rhs) {
-            self.z[j] = *v;
-        }
-        self.z.iter().all(|v| v.is_finite())
-    }
 }
 
 #[cfg(test)]

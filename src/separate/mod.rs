@@ -22,10 +22,12 @@
 pub mod blocking;
 pub mod cholesky;
 mod config;
+pub mod demix;
 pub mod direct_power;
 pub mod harmonic;
 pub mod lifecycle;
 pub mod mvdr;
+pub mod nnls;
 pub mod null_steering;
 pub mod postfilter;
 pub mod rls;

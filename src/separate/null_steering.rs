@@ -23,6 +23,7 @@ pub struct NullSteering {
     z: Vec<Complex>,
     t: Vec<Complex>,
     scale: Vec<f64>,
+    eps: f64,
 }
 
 impl NullSteering {
@@ -68,6 +69,7 @@ impl NullSteering {
             trace += self.gram[i * n + i].re;
         }
         let eps = (loading * trace / n.max(1) as f64).max(1e-300);
+        self.eps = eps;
         for i in 0..n {
             // Keep the unloaded diagonal for the fallback below.
             self.scale[i] = self.gram[i * n + i].re;
@@ -157,6 +159,25 @@ impl NullSteering {
         }
     }
 
+    /// Every beamformer's power response toward every column, |W_i^H d_j|^2, written row-major
+    /// (n x n) to `out`. With G the unloaded Gram matrix, X G = I - eps X, so the responses come
+    /// from X alone: W_i^H d_j = c_i^-1 (delta_ij - eps X_ij), no beamformer applied.
+    pub fn cross_powers(&self, out: &mut [f64]) {
+        let n = self.n;
+        for i in 0..n {
+            for j in 0..n {
+                // X_ij = sum_k conj(Linv_ki) Linv_kj.
+                let mut x = Complex::new(0.0, 0.0);
+                for k in i.max(j)..n {
+                    x += self.linv[k * n + i].conj() * self.linv[k * n + j];
+                }
+                let delta = if i == j { 1.0 } else { 0.0 };
+                out[i * n + j] =
+                    ((Complex::new(delta, 0.0) - x * self.eps) * self.scale[i]).norm_sqr();
+            }
+        }
+    }
+
     /// The weights W_i (length `m`) of column `i`'s beamformer.
     pub fn weights(&self, d: &[Complex], m: usize, i: usize, out: &mut [Complex]) {
         let n = self.n;
@@ -234,6 +255,13 @@ mod tests {
                 // Bounded white-noise gain: at most 10 dB above delay-and-sum's 1/M.
                 let wn: f64 = w.iter().map(|x| x.norm_sqr()).sum();
                 assert!(wn < 10.0 / 8.0, "{f} Hz: |w|^2 = {wn}");
+                // The closed-form power cross-responses agree with the weights'.
+                let mut cross = [0.0; 9];
+                ns.cross_powers(&mut cross);
+                for j in 0..3 {
+                    let r = response(&w, &d[j * 8..(j + 1) * 8]).norm_sqr();
+                    assert!((cross[i * 3 + j] - r).abs() < 1e-9 * r.max(1.0), "{f} Hz");
+                }
                 // outputs() agrees with the explicit weights.
                 let y: Vec<Complex> = (0..8).map(|k| Complex::new(k as f64, -1.0)).collect();
                 let mut out = vec![Complex::new(0.0, 0.0); 3];

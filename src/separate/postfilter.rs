@@ -8,6 +8,7 @@
 //!   stationary noise floor N (minimum tracking with a slow rise), floored against musical noise.
 
 use super::config::{PostFilterConfig, PostFilterKind};
+use super::demix::{DEMIX_RIDGE, Demixing, MAX_DEMIXED};
 use crate::dsp::Complex;
 
 /// Smoothing factor per frame of the power that the noise floor tracks.
@@ -95,16 +96,15 @@ impl PostFilter {
     /// Updates every label's state at one bin from its beamformer output and writes its gain.
     /// `priors` weighs each label's claim on the bin (its prior probability of talking, see
     /// [`PostFilter::prior`]); `reference` is the reference microphone's value and its smoothed
-    /// power (state). With `demix` (the beamformers' power cross-responses, row-major, and a
-    /// scratch of one value per label) the Wiener gains compare the labels' powers with the
-    /// cross-responses undone ([`demix`]).
+    /// power (state). With `demix_by` the Wiener gains compare the labels' powers with the
+    /// beamformers' cross-responses undone ([`super::demix`]).
     pub fn gains(
         &self,
         outputs: &[Complex],
         priors: &[f64],
         state: &mut [PostState],
         reference: (Complex, &mut f64),
-        demix_by: Option<(&[f64], &mut [f64])>,
+        demix_by: Option<Demixing<'_>>,
         gains: &mut [f64],
     ) {
         let n = outputs.len();
@@ -132,8 +132,13 @@ impl PostFilter {
                 }
             }
             PostFilterKind::Wiener => {
-                let demixed = demix_by.and_then(|(cross, out)| {
-                    (demix(cross, state, out) && out.iter().all(|v| v.is_finite())).then_some(&*out)
+                let mut powers = [0.0; MAX_DEMIXED];
+                let mut demix_by = demix_by.filter(|_| n <= MAX_DEMIXED);
+                let demixed = demix_by.as_mut().and_then(|d| {
+                    for (p, s) in powers.iter_mut().zip(state.iter()) {
+                        *p = s.power;
+                    }
+                    d.powers(&powers[..n], DEMIX_RIDGE)
                 });
                 let a = self.exponent;
                 let pow = |x: f64| {
@@ -174,66 +179,6 @@ impl PostFilter {
         }
     }
 }
-
-/// Most sweeps of the demixing's coordinate descent: with three labels it settles to 1e-6 of
-/// the exact solution in about ten on paper-linear6's worst-conditioned bins.
-const DEMIX_SWEEPS: usize = 30;
-
-/// A sweep that moves no power by more than this fraction of the largest output power ends
-/// the descent (the gains it feeds cannot tell the difference).
-const DEMIX_TOLERANCE: f64 = 1e-12;
-
-/// The labels' powers phi >= 0 whose mix through the beamformers' power cross-responses
-/// `cross` (row-major, n x n: row i is label i's beamformer's power response toward each
-/// label's steering) best explains their smoothed output powers in `state` (least squares,
-/// projected coordinate descent from the output powers), written to `out`. False, with `out`
-/// untouched, when `cross` is too short or there are more than `MAX_DEMIXED` labels.
-pub fn demix(cross: &[f64], state: &[PostState], out: &mut [f64]) -> bool {
-    let n = state.len().min(out.len());
-    if cross.len() < n * n || n > MAX_DEMIXED {
-        return false;
-    }
-    // Residuals p - R phi, kept up to date as each coordinate moves.
-    let mut residual = [0.0; MAX_DEMIXED];
-    for (o, s) in out.iter_mut().zip(state) {
-        *o = s.power;
-    }
-    let mut scale = 0.0f64;
-    for q in 0..n {
-        let row = &cross[q * n..(q + 1) * n];
-        residual[q] = state[q].power - row.iter().zip(&out[..n]).map(|(r, f)| r * f).sum::<f64>();
-        scale = scale.max(state[q].power.abs());
-    }
-    for _ in 0..DEMIX_SWEEPS {
-        let mut moved = 0.0f64;
-        for i in 0..n {
-            let (mut g, mut h) = (0.0, 0.0);
-            for (q, res) in residual[..n].iter().enumerate() {
-                let r = cross[q * n + i];
-                g += r * res;
-                h += r * r;
-            }
-            if h > 0.0 {
-                let next = (out[i] + g / h).max(0.0);
-                let step = next - out[i];
-                if step != 0.0 {
-                    for (q, res) in residual[..n].iter_mut().enumerate() {
-                        *res -= cross[q * n + i] * step;
-                    }
-                    out[i] = next;
-                    moved = moved.max(step.abs());
-                }
-            }
-        }
-        if moved.is_nan() || moved <= DEMIX_TOLERANCE * scale {
-            break;
-        }
-    }
-    true
-}
-
-/// Most labels the demixing handles at a bin (more leave the powers as they are).
-const MAX_DEMIXED: usize = 16;
 
 #[cfg(test)]
 mod tests {
@@ -381,26 +326,18 @@ mod tests {
         assert!(noise_gain / 154.0 < 0.4, "{}", noise_gain / 154.0);
     }
 
-    /// paper-linear6's beamformers at 100 Hz (labels at -25, 3 and 25 degrees; measured
-    /// with the loaded null-steering weights): the middle one passes both outer talkers.
-    const CROSS_100_HZ: [f64; 9] = [1.0, 0.36, 0.09, 0.9, 1.0, 1.08, 0.1, 0.49, 1.0];
-
     #[test]
     fn demixing_gives_an_outer_talkers_low_band_back_to_its_label() {
+        use crate::separate::demix::CROSS_100_HZ;
+        use crate::separate::nnls::Nnls;
         // Only the outer talker (label 2) is heard: the middle label's beamformer outputs more
         // of it than its own does.
         let phi = [0.0, 0.0, 1.0];
-        let mut st = vec![PostState::default(); 3];
+        let mut st = [PostState::default(); 3];
         for (i, s) in st.iter_mut().enumerate() {
             s.power = (0..3).map(|j| CROSS_100_HZ[i * 3 + j] * phi[j]).sum();
         }
-        let mut out = [0.0; 3];
-        assert!(demix(&CROSS_100_HZ, &st, &mut out));
-        for (o, p) in out.iter().zip(phi) {
-            assert!((o - p).abs() < 1e-6, "{out:?}");
-        }
-        // The Wiener gains follow: the talker's label takes the bin with the demixing, the
-        // middle label without it.
+        // The talker's label takes the bin with the demixing, the middle label without it.
         let f = PostFilter::new(
             &PostFilterConfig {
                 kind: PostFilterKind::Wiener,
@@ -416,9 +353,15 @@ mod tests {
             .iter()
             .map(|s| Complex::new(s.power.sqrt(), 0.0))
             .collect();
-        let gains_with = |demix_by: Option<(&[f64], &mut [f64])>| {
+        let gains_with = |cross: Option<&[f64]>| {
             let mut st = vec![PostState::default(); 3];
             let mut g = vec![0.0; 3];
+            let (mut solver, mut support) = (Nnls::default(), 0);
+            let demix_by = cross.map(|cross| Demixing {
+                cross,
+                solver: &mut solver,
+                support: &mut support,
+            });
             f.gains(
                 &outputs,
                 &[1.0; 3],
@@ -430,22 +373,10 @@ mod tests {
             g
         };
         let raw = gains_with(None);
-        let mut scratch = [0.0; 3];
-        let demixed = gains_with(Some((&CROSS_100_HZ, &mut scratch)));
+        let demixed = gains_with(Some(&CROSS_100_HZ));
         assert!(raw[1] > raw[2], "{raw:?}");
         assert!(demixed[2] > 0.9 && demixed[1] < 0.2, "{demixed:?}");
-        // Where the beamformers null each other (identity) nothing changes, and a talker
-        // heard by all in proportion to the responses is found whole.
-        let eye = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-        assert!(demix(&eye, &st, &mut out));
-        for (o, s) in out.iter().zip(&st) {
-            assert!((o - s.power).abs() < 1e-12);
-        }
-        // Too short a matrix leaves the scratch as it was, says so, and the gains then use
-        // the raw powers rather than whatever the scratch held.
-        let mut kept = [7.0; 3];
-        assert!(!demix(&CROSS_100_HZ[..4], &st, &mut kept));
-        assert_eq!(kept, [7.0; 3]);
-        assert_eq!(gains_with(Some((&CROSS_100_HZ[..4], &mut kept))), raw);
+        // Too short a matrix is refused and the gains use the raw powers.
+        assert_eq!(gains_with(Some(&CROSS_100_HZ[..4])), raw);
     }
 }

@@ -200,9 +200,9 @@ pub struct PostFilterConfig {
     pub presence_floor: f64,
     /// Below this frequency (Hz) the Wiener gains compare the labels' powers after undoing
     /// their beamformers' known cross-responses: each label's power is the non-negative
-    /// least-squares solution of p = R phi, with p the labels' smoothed output powers and R_ij
-    /// the power response of label i's fixed (null-steering) beamformer toward label j's
-    /// steering. Where a small array cannot null a neighbour, a label between two others
+    /// least-squares solution of p = R phi (with a small ridge toward p, which keeps p where R
+    /// cannot tell labels apart), with p the labels' smoothed output powers and R_ij the power
+    /// response of label i's fixed (null-steering) beamformer toward label j's steering. Where a small array cannot null a neighbour, a label between two others
     /// passes both of their talkers nearly whole (paper-linear6 below 300 Hz: 0.8-1.1 of
     /// their power, while each outer label's beamformer passes the middle one at 0.1-0.5 and
     /// the far one at 0.1 or less), so the raw comparison hands a quieter outer talker's low
@@ -211,14 +211,16 @@ pub struct PostFilterConfig {
     /// null-steering and GSC beamformers (their fixed branch; the GSC's canceller adds little
     /// there). 0 turns it off. 300 (default) against 0, full pipeline, SI-SDRi / streams per
     /// talker / half-second blocks on another label: recorded speech on paper-linear6 seeds
-    /// 1-36 +6.29 / 1.111 / 14 against +6.25 / 1.157 / 24, seeds 37-52 (held out) +6.56 /
-    /// 1.062 / 3 against +6.40 / 1.125 / 6; the simulator's voices seeds 1-48 +7.80 / 1.153 /
-    /// 33 against +7.79 / 1.146 / 35, seeds 49-72 (held out) +8.00 / 1.208 / 21 against +7.81
-    /// / 1.250 / 26; uca8, whose labels are further apart, three talkers seeds 1-18 +9.02 /
-    /// 1.148 / 65 against +9.06 / 1.167 / 60, recorded seeds 1-12 +6.21 / 1.222 / 47 against
-    /// +6.30 / 1.194 / 45. 200 / 400 / 500 / 1000 Hz: recorded +6.31 / +6.23 / +6.24 / +6.22
-    /// dB with 15 / 15 / 15 / 17 blocks lost, the simulator's voices +7.72 / +7.68 / +7.59 /
-    /// +7.55 dB with 41 / 40 / 38 / 42.
+    /// 1-36 +6.30 / 1.111 / 14 against +6.25 / 1.157 / 24, seeds 37-52 (held out) +6.59 /
+    /// 1.062 / 3 against +6.40 / 1.125 / 6; the simulator's voices seeds 1-48 +7.80 / 1.160 /
+    /// 35 against +7.79 / 1.146 / 35, seeds 49-72 (held out) +7.98 / 1.208 / 21 against +7.81
+    /// / 1.250 / 26; uca8, whose labels are further apart, three talkers seeds 1-18 +9.03 /
+    /// 1.167 / 63 against +9.06 / 1.167 / 60, recorded seeds 1-12 +6.26 / 1.250 / 41 against
+    /// +6.30 / 1.194 / 45. The top was chosen with the first solver (projected coordinate
+    /// descent, which gave the same to 0.03 dB): 200 / 400 / 500 / 1000 Hz gave recorded +6.31
+    /// / +6.23 / +6.24 / +6.22 dB with 15 / 15 / 15 / 17 blocks lost (300: +6.29, 14), the
+    /// simulator's voices +7.72 / +7.68 / +7.59 / +7.55 dB with 41 / 40 / 38 / 42 (300: +7.80,
+    /// 33).
     pub demix_below_hz: f64,
     /// Harmonic grouping of the bins the array cannot resolve between labels.
     pub harmonic: HarmonicConfig,

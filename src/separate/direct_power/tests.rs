@@ -1,89 +1,10 @@
-//! Tests of the direct-path power fit: the NNLS solver against brute force, and the shares of a
-//! silent label beside a reverberant talker.
+//! Tests of the direct-path power fit: the shares of a silent label beside a reverberant talker.
 
 use super::*;
 use crate::separate::steering::Steering;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use rand_distr::StandardNormal;
-
-/// The least-squares objective x^T K x - 2 b^T x.
-fn objective(k: &[f64], b: &[f64], x: &[f64], n: usize) -> f64 {
-    let mut v = 0.0;
-    for i in 0..n {
-        for j in 0..n {
-            v += x[i] * k[i * n + j] * x[j];
-        }
-        v -= 2.0 * b[i] * x[i];
-    }
-    v
-}
-
-/// The best feasible point over every support (solving the normal equations on it).
-fn brute_force(k: &[f64], b: &[f64], n: usize) -> Vec<f64> {
-    let mut best = (vec![0.0; n], 0.0);
-    let mut solver = Nnls::default();
-    for mask in 1..(1u32 << n) {
-        solver.passive = (0..n).map(|j| mask & (1 << j) != 0).collect();
-        solver.z = vec![0.0; n];
-        if !solver.solve_passive(k, b, n) || solver.z.iter().any(|&v| v < 0.0) {
-            continue;
-        }
-        let f = objective(k, b, &solver.z, n);
-        if f < best.1 {
-            best = (solver.z.clone(), f);
-        }
-    }
-    best.0
-}
-
-#[test]
-fn nnls_finds_the_best_non_negative_point() {
-    let mut rng = StdRng::seed_from_u64(7);
-    let mut solver = Nnls::default();
-    for n in 1..=6 {
-        for _ in 0..300 {
-            // K = A^T A for a random tall A, b = A^T r for a random r: some unknowns end at 0.
-            let rows = n + 3;
-            let mut a: Vec<f64> = (0..rows * n).map(|_| rng.sample(StandardNormal)).collect();
-            // Half the problems have two nearly collinear columns (two labels the array can
-            // hardly tell apart), where rounding once kept the active set cycling.
-            if n >= 2 && rng.random_bool(0.5) {
-                for q in 0..rows {
-                    let e: f64 = rng.sample(StandardNormal);
-                    a[q * n + 1] = a[q * n] * (1.0 + 1e-9 * e);
-                }
-            }
-            let r: Vec<f64> = (0..rows).map(|_| rng.sample(StandardNormal)).collect();
-            let mut k = vec![0.0; n * n];
-            let mut b = vec![0.0; n];
-            for i in 0..n {
-                for j in 0..n {
-                    k[i * n + j] = (0..rows).map(|q| a[q * n + i] * a[q * n + j]).sum();
-                }
-                b[i] = (0..rows).map(|q| a[q * n + i] * r[q]).sum();
-            }
-            // Cold and warm starts (from a random support) reach the same optimum.
-            let x = solver.solve(&k, &b, n, &mut 0).to_vec();
-            let mut support = rng.random_range(0..(1u32 << n));
-            let warm = solver.solve(&k, &b, n, &mut support).to_vec();
-            let fwarm = objective(&k, &b, &warm, n);
-            let want = brute_force(&k, &b, n);
-            assert!(x.iter().all(|&v| v >= 0.0), "{x:?}");
-            let (fx, fw) = (objective(&k, &b, &x, n), objective(&k, &b, &want, n));
-            // Both solve with the ridge, which moves the optimum by about its size (1e-6).
-            assert!(
-                fx <= fw + 1e-6 * fw.abs().max(1.0),
-                "n {n}: {fx} against {fw}"
-            );
-            assert!(
-                fwarm <= fw + 1e-6 * fw.abs().max(1.0),
-                "n {n}: {fwarm} against {fw}"
-            );
-            assert!(warm.iter().all(|&v| v >= 0.0), "{warm:?}");
-        }
-    }
-}
 
 /// Six microphones 4 cm apart on a line (the paper-linear6 array).
 fn line6() -> Vec<Vec3> {

@@ -7,6 +7,7 @@ use crate::label::Label;
 use crate::separate::config::{
     AdaptationConfig, BeamformerKind, PostFilterTarget, SeparatorConfig,
 };
+use crate::separate::demix::Demixing;
 use crate::separate::harmonic;
 use crate::separate::mvdr;
 use crate::separate::rls::{self, RlsStep};
@@ -101,15 +102,12 @@ impl Separator {
                     }
                 }
                 if w.rebuild[g] && k < self.k_demix {
-                    // Each beamformer's response toward each label: its outputs for the
-                    // label's steering vector as the snapshot.
+                    ns.cross_powers(&mut w.group_cross);
                     let cross = &mut w.cross[k * n * n..(k + 1) * n * n];
-                    for j in 0..n {
-                        ns.outputs(&w.walk[g], m, &w.walk[g][j * m..(j + 1) * m], &mut w.ns_out);
-                        for (i, s) in self.streams.iter().enumerate() {
-                            if s.group == g {
-                                cross[i * n + j] = w.ns_out[i].norm_sqr();
-                            }
+                    for (i, s) in self.streams.iter().enumerate() {
+                        if s.group == g {
+                            cross[i * n..(i + 1) * n]
+                                .copy_from_slice(&w.group_cross[i * n..(i + 1) * n]);
                         }
                     }
                 }
@@ -281,7 +279,11 @@ impl Separator {
         let demix_by = (k < self.k_demix
             && fixed_branch
             && (0..self.groups.len()).all(|g| !w.active[g] || w.shared[g]))
-        .then(|| (&w.cross[k * n * n..(k + 1) * n * n], &mut w.demixed[..n]));
+        .then(|| Demixing {
+            cross: &w.cross[k * n * n..(k + 1) * n * n],
+            solver: &mut w.nnls,
+            support: &mut w.demix_support[k],
+        });
         self.post.gains(
             &w.bf,
             &w.priors,

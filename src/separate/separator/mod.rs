@@ -9,6 +9,7 @@ use super::config::{ConfigError, SeparatorConfig};
 use super::direct_power::DirectPowerFit;
 use super::harmonic::{Harmonic, HarmonicFit, Periodicity, Pitch};
 use super::lifecycle::Timing;
+use super::nnls::Nnls;
 use super::null_steering::NullSteering;
 use super::postfilter::{PostFilter, PostState};
 use super::rls;
@@ -81,8 +82,14 @@ struct Work {
     /// fixed beamformer toward the label's steering; recomputed with the beamformers
     /// (`rebuild`).
     cross: Vec<f64>,
-    /// The labels' demixed powers at the current bin.
-    demixed: Vec<f64>,
+    /// One group's beamformers' cross-responses at the current bin, before the rows of the
+    /// group's streams are copied to `cross`.
+    group_cross: Vec<f64>,
+    /// Per bin below the demixing's top: the labels whose demixed power was positive in the
+    /// last frame (bit per label), where the next frame's solve starts.
+    demix_support: Vec<u32>,
+    /// The demixing's solver.
+    nnls: Nnls,
     /// The canceller's forgetting per update this frame.
     rls_forgetting: f64,
     /// Per stream: the bound on the canceller's squared norm this frame.
