@@ -211,12 +211,14 @@ pub struct PostFilterConfig {
     /// null-steering and GSC beamformers (their fixed branch; the GSC's canceller adds little
     /// there). 0 turns it off. 300 (default) against 0, full pipeline, SI-SDRi / streams per
     /// talker / half-second blocks on another label: recorded speech on paper-linear6 seeds
-    /// 1-36 +6.30 / 1.111 / 14 against +6.25 / 1.157 / 24, seeds 37-52 (held out) +6.59 /
+    /// 1-36 +6.31 / 1.111 / 14 against +6.25 / 1.157 / 24, seeds 37-52 (held out) +6.61 /
     /// 1.062 / 3 against +6.40 / 1.125 / 6; the simulator's voices seeds 1-48 +7.80 / 1.160 /
     /// 35 against +7.79 / 1.146 / 35, seeds 49-72 (held out) +7.98 / 1.208 / 21 against +7.81
-    /// / 1.250 / 26; uca8, whose labels are further apart, three talkers seeds 1-18 +9.03 /
-    /// 1.167 / 63 against +9.06 / 1.167 / 60, recorded seeds 1-12 +6.26 / 1.250 / 41 against
-    /// +6.30 / 1.194 / 45. The top was chosen with the first solver (projected coordinate
+    /// / 1.250 / 26; uca8, whose labels are further apart, three talkers seeds 1-18 +9.07 /
+    /// 1.167 / 61 against +9.06 / 1.167 / 60, recorded seeds 1-12 +6.29 / 1.250 / 40 against
+    /// +6.30 / 1.194 / 45. Only the bins where a beamformer passes a neighbour's talker at 0.9
+    /// of that label's own response are demixed (`separate::demix::DEMIX_MIN_LEAK`). The top
+    /// was chosen with the first solver (projected coordinate
     /// descent, which gave the same to 0.03 dB): 200 / 400 / 500 / 1000 Hz gave recorded +6.31
     /// / +6.23 / +6.24 / +6.22 dB with 15 / 15 / 15 / 17 blocks lost (300: +6.29, 14), the
     /// simulator's voices +7.72 / +7.68 / +7.59 / +7.55 dB with 41 / 40 / 38 / 42 (300: +7.80,
