@@ -159,23 +159,25 @@ impl NullSteering {
         }
     }
 
-    /// Every beamformer's power response toward every column, |W_i^H d_j|^2, written row-major
-    /// (n x n) to `out`. With G the unloaded Gram matrix, X G = I - eps X, so the responses come
+    /// Column `i`'s beamformer's power response toward every column, |W_i^H d_j|^2, written to
+    /// `out` (length n). With G the unloaded Gram matrix, X G = I - eps X, so the responses come
     /// from X alone: W_i^H d_j = c_i^-1 (delta_ij - eps X_ij), no beamformer applied.
-    pub fn cross_powers(&self, out: &mut [f64]) {
-        let n = self.n;
-        for i in 0..n {
-            for j in 0..n {
-                // X_ij = sum_k conj(Linv_ki) Linv_kj.
-                let mut x = Complex::new(0.0, 0.0);
-                for k in i.max(j)..n {
-                    x += self.linv[k * n + i].conj() * self.linv[k * n + j];
-                }
-                let delta = if i == j { 1.0 } else { 0.0 };
-                out[i * n + j] =
-                    ((Complex::new(delta, 0.0) - x * self.eps) * self.scale[i]).norm_sqr();
-            }
+    pub fn cross_powers(&self, i: usize, out: &mut [f64]) {
+        for (j, o) in out.iter_mut().enumerate().take(self.n) {
+            let delta = if i == j { 1.0 } else { 0.0 };
+            *o = ((Complex::new(delta, 0.0) - self.inverse_at(i, j) * self.eps) * self.scale[i])
+                .norm_sqr();
         }
+    }
+
+    /// X_ij of X = (G + eps I)^{-1} = Linv^H Linv: sum_k conj(Linv_ki) Linv_kj.
+    fn inverse_at(&self, i: usize, j: usize) -> Complex {
+        let n = self.n;
+        let mut x = Complex::new(0.0, 0.0);
+        for k in i.max(j)..n {
+            x += self.linv[k * n + i].conj() * self.linv[k * n + j];
+        }
+        x
     }
 
     /// The weights W_i (length `m`) of column `i`'s beamformer.
@@ -183,12 +185,8 @@ impl NullSteering {
         let n = self.n;
         out[..m].fill(Complex::new(0.0, 0.0));
         for j in 0..n {
-            // x_j = (X e_i)_j = sum_k conj(Linv_kj) Linv_ki.
-            let mut x = Complex::new(0.0, 0.0);
-            for k in i.max(j)..n {
-                x += self.linv[k * n + j].conj() * self.linv[k * n + i];
-            }
-            let x = x * self.scale[i];
+            // x_j = (X e_i)_j.
+            let x = self.inverse_at(j, i) * self.scale[i];
             for (o, a) in out.iter_mut().zip(&d[j * m..(j + 1) * m]) {
                 *o += a * x;
             }
@@ -256,11 +254,11 @@ mod tests {
                 let wn: f64 = w.iter().map(|x| x.norm_sqr()).sum();
                 assert!(wn < 10.0 / 8.0, "{f} Hz: |w|^2 = {wn}");
                 // The closed-form power cross-responses agree with the weights'.
-                let mut cross = [0.0; 9];
-                ns.cross_powers(&mut cross);
+                let mut cross = [0.0; 3];
+                ns.cross_powers(i, &mut cross);
                 for j in 0..3 {
                     let r = response(&w, &d[j * 8..(j + 1) * 8]).norm_sqr();
-                    assert!((cross[i * 3 + j] - r).abs() < 1e-9 * r.max(1.0), "{f} Hz");
+                    assert!((cross[j] - r).abs() < 1e-9 * r.max(1.0), "{f} Hz");
                 }
                 // outputs() agrees with the explicit weights.
                 let y: Vec<Complex> = (0..8).map(|k| Complex::new(k as f64, -1.0)).collect();

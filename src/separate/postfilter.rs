@@ -133,12 +133,14 @@ impl PostFilter {
             }
             PostFilterKind::Wiener => {
                 let mut powers = [0.0; MAX_DEMIXED];
-                let mut demix_by = demix_by.filter(|_| n <= MAX_DEMIXED);
+                let mut demix_by = demix_by;
                 let demixed = demix_by.as_mut().and_then(|d| {
-                    for (p, s) in powers.iter_mut().zip(state.iter()) {
+                    // More labels than the demixing takes leave the raw powers.
+                    let p = powers.get_mut(..n)?;
+                    for (p, s) in p.iter_mut().zip(state.iter()) {
                         *p = s.power;
                     }
-                    d.powers(&powers[..n], DEMIX_RIDGE)
+                    d.powers(p, DEMIX_RIDGE)
                 });
                 let a = self.exponent;
                 let pow = |x: f64| {

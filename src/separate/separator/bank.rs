@@ -65,7 +65,6 @@ impl Separator {
         let n = self.streams.len();
         self.work.pair_unresolved.resize(self.bins * n * n, 0.0);
         self.work.cross.resize(self.k_demix * n * n, 0.0);
-        self.work.group_cross.resize(n * n, 0.0);
         self.work.demix_support.resize(self.k_demix, 0);
     }
 

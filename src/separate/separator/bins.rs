@@ -102,12 +102,10 @@ impl Separator {
                     }
                 }
                 if w.rebuild[g] && k < self.k_demix {
-                    ns.cross_powers(&mut w.group_cross);
                     let cross = &mut w.cross[k * n * n..(k + 1) * n * n];
                     for (i, s) in self.streams.iter().enumerate() {
                         if s.group == g {
-                            cross[i * n..(i + 1) * n]
-                                .copy_from_slice(&w.group_cross[i * n..(i + 1) * n]);
+                            ns.cross_powers(i, &mut cross[i * n..(i + 1) * n]);
                         }
                     }
                 }

@@ -82,9 +82,6 @@ struct Work {
     /// fixed beamformer toward the label's steering; recomputed with the beamformers
     /// (`rebuild`).
     cross: Vec<f64>,
-    /// One group's beamformers' cross-responses at the current bin, before the rows of the
-    /// group's streams are copied to `cross`.
-    group_cross: Vec<f64>,
     /// Per bin below the demixing's top: the labels whose demixed power was positive in the
     /// last frame (bit per label), where the next frame's solve starts.
     demix_support: Vec<u32>,
