@@ -33,6 +33,14 @@ const LANES: usize = 8;
 /// its cost a fraction of the main update's; callers stagger `leak_index` across bins.
 pub const LEAK_EVERY: usize = 4;
 
+/// Independent accumulators of the product P u; it divides [`LANES`], so the padded rows
+/// split evenly among them.
+const CHAINS: usize = 4;
+const _: () = assert!(LANES.is_multiple_of(CHAINS));
+
+/// Scratch of one step per padded weight ([`adapt`]'s `scratch` holds this many times `lp`).
+pub const SCRATCH_PER_LANE: usize = 2 * CHAINS;
+
 /// Shape of one bin's canceller state: `l` weights, stored padded to `lp` (a multiple of 8) with
 /// real and imaginary parts apart, so the inner loops run over contiguous equal-length rows that
 /// the compiler vectorises. Layout: V re, V im (`lp` each), then P re, P im (`lp * lp` each,
@@ -164,8 +172,9 @@ fn rank_one_down(pr: &mut [Real], pi: &mut [Real], lp: usize, hr: &[Real], hi: &
 }
 
 /// One weighted RLS step, with leakage when `leak_index` (a per-frame counter) says so. `e` is
-/// the a-priori output, `power` the bin's input power, `scratch` at least `2 lp` values. Returns
-/// false when the recursion produced something non-finite; the caller then resets the bin.
+/// the a-priori output, `power` the bin's input power, `scratch` at least
+/// [`SCRATCH_PER_LANE`] times `lp` values. Returns false when the recursion produced something
+/// non-finite; the caller then resets the bin.
 #[allow(clippy::too_many_arguments)]
 pub fn adapt(
     state: &mut [Real],
@@ -260,28 +269,31 @@ fn adapt_sized<F: MulAdd>(
 ) -> bool {
     let (ur, ui) = (&ur[..lp], &ui[..lp]);
     let (vr, vi, pr, pi, scale) = parts(state, d);
-    let (hr, hi) = scratch[..2 * lp].split_at_mut(lp);
+    let (h, acc) = scratch[..2 * CHAINS * lp].split_at_mut(2 * lp);
+    let (hr, hi) = h.split_at_mut(lp);
     let lam = 1.0 - (1.0 - step.forgetting) * beta;
     let sc = f64::from(*scale);
-    times_p::<F>(pr, pi, lp, (ur, ui), (hr, hi));
+    times_p::<F>(pr, pi, lp, (ur, ui), (hr, hi), acc);
     // The conversion term u^H (sc P) u is real for a Hermitian P.
-    let mut upu = 0.0f64;
+    let mut lanes = [0.0f64; 4];
     for i in 0..lp {
-        upu += f64::from(ur[i] * hr[i] + ui[i] * hi[i]);
+        lanes[i % 4] += f64::from(ur[i] * hr[i] + ui[i] * hi[i]);
     }
+    let upu = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
     let den = lam + beta * sc * upu;
     if !(den > 0.0 && den.is_finite()) {
         return false;
     }
-    let g = beta / den;
+    // g sc with the numerator formed beside the sum, so the division follows it directly.
+    let gs = (beta * sc) / den;
     // V += g (sc P u) e^*.
-    let (er, ei) = ((g * sc * e.re) as Real, (-g * sc * e.im) as Real);
+    let (er, ei) = ((gs * e.re) as Real, (-gs * e.im) as Real);
     for i in 0..lp {
         vr[i] = F::madd(hr[i], er, F::madd(-hi[i], ei, vr[i]));
         vi[i] = F::madd(hr[i], ei, F::madd(hi[i], er, vi[i]));
     }
     // sc P <- (sc P - g sc^2 (P u)(P u)^H) / lambda, i.e. P -= g sc (P u)(P u)^H and sc /= lambda.
-    let sg = (g * sc).sqrt() as Real;
+    let sg = (gs as Real).sqrt();
     hr.iter_mut().chain(hi.iter_mut()).for_each(|x| *x *= sg);
     rank_one_down(pr, pi, lp, hr, hi);
     let sc = sc / lam;
@@ -296,7 +308,8 @@ fn adapt_sized<F: MulAdd>(
 
 /// h = P u (the true inverse correlation is sc P). P is Hermitian, so
 /// (P u)_i = sum_j conj(P_ji) u_j: an axpy over contiguous rows. (The Hermitian structure of
-/// P only matters in its own update, so fused products are fine here.)
+/// P only matters in its own update, so fused products are fine here.) `acc` holds
+/// `2 (CHAINS - 1) lp` values of scratch.
 #[inline(always)]
 fn times_p<F: MulAdd>(
     pr: &[Real],
@@ -304,17 +317,36 @@ fn times_p<F: MulAdd>(
     lp: usize,
     (ur, ui): (&[Real], &[Real]),
     (hr, hi): (&mut [Real], &mut [Real]),
+    acc: &mut [Real],
 ) {
-    for i in 0..lp {
-        hr[i] = 0.0;
-        hi[i] = 0.0;
+    // Rows j go to CHAINS independent accumulators (j mod CHAINS): the chain of dependent
+    // multiply-adds, not the arithmetic, sets the time of this small product.
+    let acc = &mut acc[..2 * (CHAINS - 1) * lp];
+    acc.fill(0.0);
+    hr[..lp].fill(0.0);
+    hi[..lp].fill(0.0);
+    for j0 in (0..lp).step_by(CHAINS) {
+        for c in 0..CHAINS {
+            let j = j0 + c;
+            let (xr, xi) = (ur[j], ui[j]);
+            let (rr, ri) = (&pr[j * lp..(j + 1) * lp], &pi[j * lp..(j + 1) * lp]);
+            let (ar, ai) = if c == 0 {
+                (&mut hr[..lp], &mut hi[..lp])
+            } else {
+                let (r, i) = acc[2 * (c - 1) * lp..2 * c * lp].split_at_mut(lp);
+                (r, i)
+            };
+            for i in 0..lp {
+                ar[i] = F::madd(rr[i], xr, F::madd(ri[i], xi, ar[i]));
+                ai[i] = F::madd(rr[i], xi, F::madd(-ri[i], xr, ai[i]));
+            }
+        }
     }
-    for j in 0..lp {
-        let (xr, xi) = (ur[j], ui[j]);
-        let (rr, ri) = (&pr[j * lp..(j + 1) * lp], &pi[j * lp..(j + 1) * lp]);
-        for i in 0..lp {
-            hr[i] = F::madd(rr[i], xr, F::madd(ri[i], xi, hr[i]));
-            hi[i] = F::madd(rr[i], xi, F::madd(-ri[i], xr, hi[i]));
+    for part in acc.chunks_exact(2 * lp) {
+        let (r, i) = part.split_at(lp);
+        for q in 0..lp {
+            hr[q] += r[q];
+            hi[q] += i[q];
         }
     }
 }
@@ -415,43 +447,32 @@ mod tests {
 
     #[test]
     fn converges_to_the_wiener_solution() {
-        let d = Dims::new(3);
-        let mut rng = ChaCha8Rng::seed_from_u64(5);
-        let truth = [
-            Complex::new(0.5, -0.2),
-            Complex::new(-0.1, 0.3),
-            Complex::new(0.0, 0.7),
-        ];
-        let mut st: Vec<Real> = vec![0.0; d.stride()];
-        let mut scratch: Vec<Real> = vec![0.0; 2 * d.lp];
-        reset(&mut st, d, 1e-2, 0.66);
-        let step = RlsStep {
-            forgetting: 0.99,
-            leakage: 1e-4,
-            max_norm2: 1e6,
-        };
-        for n in 0..2000 {
-            let u: Vec<Complex> = (0..d.l).map(|_| cn(&mut rng)).collect();
-            let fixed: Complex = truth.iter().zip(&u).map(|(w, u)| w.conj() * u).sum();
-            let (ur, ui) = split(&u, d);
-            let e = output(&st, d, &ur, &ui, fixed);
-            assert!(adapt(
-                &mut st,
-                d,
-                &ur,
-                &ui,
-                e,
-                1.0,
-                0.66,
-                n,
-                &step,
-                &mut scratch
-            ));
-        }
-        let mut v = vec![Complex::new(0.0, 0.0); d.l];
-        weights(&st, d, &mut v);
-        for (a, b) in v.iter().zip(&truth) {
-            assert!((a - b).norm() < 1e-2, "{v:?}");
+        // Sizes padded to 8 and 16 (the unrolled copies) and to 24 (the general one).
+        for l in [3, 11, 19] {
+            let d = Dims::new(l);
+            let mut rng = ChaCha8Rng::seed_from_u64(5 + l as u64);
+            let truth: Vec<Complex> = (0..l).map(|_| cn(&mut rng) * 0.7).collect();
+            let mut st: Vec<Real> = vec![0.0; d.stride()];
+            let mut scratch: Vec<Real> = vec![0.0; SCRATCH_PER_LANE * d.lp];
+            reset(&mut st, d, 1e-2, 0.66);
+            let step = RlsStep {
+                forgetting: 0.99,
+                leakage: 1e-4,
+                max_norm2: 1e6,
+            };
+            for n in 0..2000 {
+                let u: Vec<Complex> = (0..d.l).map(|_| cn(&mut rng)).collect();
+                let fixed: Complex = truth.iter().zip(&u).map(|(w, u)| w.conj() * u).sum();
+                let (ur, ui) = split(&u, d);
+                let e = output(&st, d, &ur, &ui, fixed);
+                let ok = adapt(&mut st, d, &ur, &ui, e, 1.0, 0.66, n, &step, &mut scratch);
+                assert!(ok, "l = {l}, step {n}");
+            }
+            let mut v = vec![Complex::new(0.0, 0.0); d.l];
+            weights(&st, d, &mut v);
+            for (a, b) in v.iter().zip(&truth) {
+                assert!((a - b).norm() < 1e-2, "l = {l}: {v:?}");
+            }
         }
     }
 
@@ -460,7 +481,7 @@ mod tests {
         let d = Dims::new(4);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
         let mut st: Vec<Real> = vec![0.0; d.stride()];
-        let mut scratch: Vec<Real> = vec![0.0; 2 * d.lp];
+        let mut scratch: Vec<Real> = vec![0.0; SCRATCH_PER_LANE * d.lp];
         reset(&mut st, d, 1e-2, 1.0);
         let step = RlsStep {
             forgetting: 0.95,
@@ -514,7 +535,7 @@ mod tests {
             max_norm2: 1e6,
         };
         let (ur, ui) = split(&[Complex::new(1.0, 2.0), Complex::new(-1.0, 0.5)], d);
-        let mut scratch: Vec<Real> = vec![0.0; 2 * d.lp];
+        let mut scratch: Vec<Real> = vec![0.0; SCRATCH_PER_LANE * d.lp];
         let e = Complex::new(3.0, 0.0);
         assert!(adapt(
             &mut st,

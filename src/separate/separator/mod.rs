@@ -445,7 +445,7 @@ impl Separator {
         let lp = rls::Dims::new(maxm).lp;
         w.ur.resize(lp, 0.0);
         w.ui.resize(lp, 0.0);
-        w.scratch.resize(2 * lp, 0.0);
+        w.scratch.resize(rls::SCRATCH_PER_LANE * lp, 0.0);
         w.mat.resize(maxm * maxm, Complex::new(0.0, 0.0));
         w.w.resize(maxm, Complex::new(0.0, 0.0));
         w.w2.resize(maxm, Complex::new(0.0, 0.0));
