@@ -445,6 +445,13 @@ mod tests {
         (r, i)
     }
 
+    /// A reset state for `d` (regularisation `delta` at input `power`) and its step scratch.
+    fn fresh(d: Dims, delta: f64, power: f64) -> (Vec<Real>, Vec<Real>) {
+        let mut st: Vec<Real> = vec![0.0; d.stride()];
+        reset(&mut st, d, delta, power);
+        (st, vec![0.0; SCRATCH_PER_LANE * d.lp])
+    }
+
     #[test]
     fn converges_to_the_wiener_solution() {
         // Sizes padded to 8 and 16 (the unrolled copies) and to 24 (the general one).
@@ -452,9 +459,7 @@ mod tests {
             let d = Dims::new(l);
             let mut rng = ChaCha8Rng::seed_from_u64(5 + l as u64);
             let truth: Vec<Complex> = (0..l).map(|_| cn(&mut rng) * 0.7).collect();
-            let mut st: Vec<Real> = vec![0.0; d.stride()];
-            let mut scratch: Vec<Real> = vec![0.0; SCRATCH_PER_LANE * d.lp];
-            reset(&mut st, d, 1e-2, 0.66);
+            let (mut st, mut scratch) = fresh(d, 1e-2, 0.66);
             let step = RlsStep {
                 forgetting: 0.99,
                 leakage: 1e-4,
@@ -480,9 +485,7 @@ mod tests {
     fn stays_bounded_when_one_direction_is_never_excited() {
         let d = Dims::new(4);
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let mut st: Vec<Real> = vec![0.0; d.stride()];
-        let mut scratch: Vec<Real> = vec![0.0; SCRATCH_PER_LANE * d.lp];
-        reset(&mut st, d, 1e-2, 1.0);
+        let (mut st, mut scratch) = fresh(d, 1e-2, 1.0);
         let step = RlsStep {
             forgetting: 0.95,
             leakage: 1e-3,
