@@ -152,9 +152,12 @@ impl Separator {
             total += *p;
         }
         let n = self.streams.len();
+        // The gate is measured only where the harmonic grouping runs.
+        let gated = a.activity_presence && self.harmonic.gates_activity() && self.post.enabled();
         for (s, b) in self.streams.iter().zip(w.beta.iter_mut()) {
             let share = (a.per_bin && total > 0.0).then(|| s.fixed_power[k] / total);
-            *b = adaptation_weight(a, s.presence, share, n);
+            let gate = gated.then(|| self.harmonic.gate_of(s.activity));
+            *b = adaptation_weight(a, target_presence(s.presence, gate), share, n);
         }
     }
 
@@ -446,6 +449,15 @@ impl GscBin<'_> {
     }
 }
 
+/// How likely a label's target talks, for its adaptation: the tracker's `presence`, or the
+/// label's activity `gate` where that says more (a NaN gate says nothing).
+fn target_presence(presence: f64, gate: Option<f64>) -> f64 {
+    match gate {
+        Some(g) if g > presence => g,
+        _ => presence,
+    }
+}
+
 /// How fast a label's adaptive stage learns in one bin (1 fully, 0 frozen), from its target's
 /// `presence` and, per bin, its share of the `labels`' fixed-beamformer power: the share scales
 /// the presence down where interferers dominate, and with the dominance guard a bin the
@@ -502,6 +514,22 @@ pub(super) fn least_resolved(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_label_whose_gate_measures_its_talker_is_not_adapted_while_the_tracker_lags() {
+        let a = AdaptationConfig::default();
+        let weight =
+            |presence, gate| adaptation_weight(&a, target_presence(presence, gate), None, 3);
+        // The tracker says silent, the gate says talking: frozen.
+        assert_eq!(weight(0.05, Some(1.0)), 0.0);
+        // Both say silent: learns at full speed; without a gate the tracker decides.
+        assert_eq!(weight(0.05, Some(0.0)), 1.0);
+        assert_eq!(weight(0.05, None), 1.0);
+        // The tracker says talking and the gate closed: still frozen (the larger counts).
+        assert_eq!(weight(1.0, Some(0.0)), 0.0);
+        // A gate that is no number says nothing.
+        assert_eq!(weight(0.05, Some(f64::NAN)), 1.0);
+    }
 
     #[test]
     fn a_label_its_own_beamformer_dominates_is_not_adapted_even_when_the_tracker_says_silent() {
