@@ -275,11 +275,7 @@ fn adapt_sized<F: MulAdd>(
     let sc = f64::from(*scale);
     times_p::<F>(pr, pi, lp, (ur, ui), (hr, hi), acc);
     // The conversion term u^H (sc P) u is real for a Hermitian P.
-    let mut lanes = [0.0f64; 4];
-    for i in 0..lp {
-        lanes[i % 4] += f64::from(ur[i] * hr[i] + ui[i] * hi[i]);
-    }
-    let upu = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+    let upu = lane_sum(lp, |i| f64::from(ur[i] * hr[i] + ui[i] * hi[i]));
     let den = lam + beta * sc * upu;
     if !(den > 0.0 && den.is_finite()) {
         return false;
@@ -304,6 +300,17 @@ fn adapt_sized<F: MulAdd>(
         leak((pr, pi), (vr, vi), lp, j, c, sc, (hr, hi));
     }
     settle((pr, pi), (vr, vi), scale, sc, d.l, lp, step.max_norm2)
+}
+
+/// The sum of `term(i)` over `0..len` in four lane-wise partial sums: one serial chain of f64
+/// additions would cost more than the rank-one update it sits beside.
+#[inline(always)]
+fn lane_sum(len: usize, term: impl Fn(usize) -> f64) -> f64 {
+    let mut lanes = [0.0f64; 4];
+    for i in 0..len {
+        lanes[i % 4] += term(i);
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3])
 }
 
 /// h = P u (the true inverse correlation is sc P). P is Hermitian, so
@@ -333,8 +340,7 @@ fn times_p<F: MulAdd>(
             let (ar, ai) = if c == 0 {
                 (&mut hr[..lp], &mut hi[..lp])
             } else {
-                let (r, i) = acc[2 * (c - 1) * lp..2 * c * lp].split_at_mut(lp);
-                (r, i)
+                acc[2 * (c - 1) * lp..2 * c * lp].split_at_mut(lp)
             };
             for i in 0..lp {
                 ar[i] = F::madd(rr[i], xr, F::madd(ri[i], xi, ar[i]));
@@ -402,13 +408,9 @@ fn settle(
         sc = 1.0;
     }
     *scale = sc as Real;
-    // Lane-wise partial sums: one serial chain of f64 additions would cost more than the
-    // rank-one update.
-    let mut lanes = [0.0f64; 4];
-    for (i, (a, b)) in vr.iter().zip(vi.iter()).enumerate() {
-        lanes[i % 4] += f64::from(a * a) + f64::from(b * b);
-    }
-    let n2 = (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]);
+    let n2 = lane_sum(vr.len().min(vi.len()), |i| {
+        f64::from(vr[i] * vr[i]) + f64::from(vi[i] * vi[i])
+    });
     if n2 > max_norm2 {
         let s = (max_norm2 / n2).sqrt() as Real;
         vr.iter_mut().chain(vi.iter_mut()).for_each(|x| *x *= s);

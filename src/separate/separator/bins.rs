@@ -53,8 +53,9 @@ impl Separator {
         }
     }
 
-    /// The canceller's per-frame constants: the forgetting per update and each stream's norm
-    /// bound (its steering's norm is the same in every bin: the walk only turns phases).
+    /// The adaptive stage's per-frame constants: the canceller's forgetting per update, each
+    /// stream's norm bound (its steering's norm is the same in every bin: the walk only turns
+    /// phases) and each stream's target presence for the adaptation control.
     fn rls_constants(&mut self) {
         let r = &self.cfg.rls;
         let w = &mut self.work;
@@ -66,6 +67,15 @@ impl Separator {
             let an: f64 = a.iter().map(|x| x.norm_sqr()).sum();
             w.max_norm2.push(r.max_norm_ratio.powi(2) / an.max(1e-300));
         }
+        // The gate is measured only where the harmonic grouping runs.
+        let gated = self.cfg.adaptation.activity_presence
+            && self.harmonic.gates_activity()
+            && self.post.enabled();
+        w.presence.clear();
+        w.presence.extend(self.streams.iter().map(|s| {
+            let gate = gated.then(|| self.harmonic.gate_of(s.activity));
+            target_presence(s.presence, gate)
+        }));
     }
 
     /// Null-steering outputs of every stream at bin `k` (delay-and-sum for that beamformer).
@@ -152,12 +162,9 @@ impl Separator {
             total += *p;
         }
         let n = self.streams.len();
-        // The gate is measured only where the harmonic grouping runs.
-        let gated = a.activity_presence && self.harmonic.gates_activity() && self.post.enabled();
-        for (s, b) in self.streams.iter().zip(w.beta.iter_mut()) {
+        for ((s, b), &presence) in self.streams.iter().zip(w.beta.iter_mut()).zip(&w.presence) {
             let share = (a.per_bin && total > 0.0).then(|| s.fixed_power[k] / total);
-            let gate = gated.then(|| self.harmonic.gate_of(s.activity));
-            *b = adaptation_weight(a, target_presence(s.presence, gate), share, n);
+            *b = adaptation_weight(a, presence, share, n);
         }
     }
 
@@ -452,10 +459,8 @@ impl GscBin<'_> {
 /// How likely a label's target talks, for its adaptation: the tracker's `presence`, or the
 /// label's activity `gate` where that says more (a NaN gate says nothing).
 fn target_presence(presence: f64, gate: Option<f64>) -> f64 {
-    match gate {
-        Some(g) if g > presence => g,
-        _ => presence,
-    }
+    // f64::max returns the other argument when one is NaN.
+    gate.map_or(presence, |g| presence.max(g))
 }
 
 /// How fast a label's adaptive stage learns in one bin (1 fully, 0 frozen), from its target's

@@ -91,6 +91,9 @@ struct Work {
     rls_forgetting: f64,
     /// Per stream: the bound on the canceller's squared norm this frame.
     max_norm2: Vec<f64>,
+    /// Per stream: how likely its target talks this frame, for the adaptation control (the
+    /// tracker's presence, or the activity gate's where that is larger).
+    presence: Vec<f64>,
     /// Per stream: prior weight in the post-filter's competition for the bins.
     priors: Vec<f64>,
     gains: Vec<f64>,
