@@ -13,6 +13,8 @@
 //! by each pair's global alignment score, as in the reference implementation (TrackEval), so a
 //! frame prefers the estimate that follows the object over the sequence.
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use super::assignment::{CostMatrix, assign};
@@ -41,10 +43,11 @@ pub struct HotaScores {
 /// HOTA of `frames`, whose distances reach similarity 0 at `scale` (> 0). `None` when the
 /// frames hold neither true objects nor estimates.
 pub fn hota(frames: &[MotFrame], scale: f64) -> Option<HotaScores> {
-    let truth_ids = dense_ids(frames.iter().flat_map(|f| f.truth.iter().copied()));
-    let est_ids = dense_ids(frames.iter().flat_map(|f| f.est.iter().copied()));
-    let (nt, ne) = (truth_ids.len(), est_ids.len());
-    if nt == 0 && ne == 0 {
+    let ids = Ids {
+        truth: dense_ids(frames.iter().flat_map(|f| f.truth.iter().copied())),
+        est: dense_ids(frames.iter().flat_map(|f| f.est.iter().copied())),
+    };
+    if ids.truth.is_empty() && ids.est.is_empty() {
         return None;
     }
     let similarity = |f: &MotFrame, i: usize, j: usize| {
@@ -59,91 +62,146 @@ pub fn hota(frames: &[MotFrame], scale: f64) -> Option<HotaScores> {
         .iter()
         .map(|f| CostMatrix::from_fn(f.truth.len(), f.est.len(), |i, j| similarity(f, i, j)))
         .collect();
-    // Pass 1: how much each (object, estimate) pair is matched over the sequence, by the
-    // Jaccard-normalised similarity of each frame.
-    let mut potential = vec![0.0; nt * ne];
-    let (mut truth_count, mut est_count) = (vec![0usize; nt], vec![0usize; ne]);
-    for (f, s) in frames.iter().zip(&sims) {
-        let row_sum: Vec<f64> = (0..s.rows())
-            .map(|i| (0..s.cols()).map(|j| s.at(i, j)).sum())
-            .collect();
-        let col_sum: Vec<f64> = (0..s.cols())
-            .map(|j| (0..s.rows()).map(|i| s.at(i, j)).sum())
-            .collect();
-        for (i, t) in f.truth.iter().enumerate() {
-            for (j, e) in f.est.iter().enumerate() {
-                let denom = row_sum[i] + col_sum[j] - s.at(i, j);
-                if denom > 0.0 {
-                    potential[truth_ids[t] * ne + est_ids[e]] += s.at(i, j) / denom;
+    let alignment = Alignment::over(frames, &sims, &ids);
+    let matches = Matches::over(frames, &sims, &ids, &alignment);
+    Some(alignment.scores(&matches))
+}
+
+/// Dense indices of the true objects' and the estimates' ids.
+struct Ids {
+    truth: BTreeMap<usize, usize>,
+    est: BTreeMap<usize, usize>,
+}
+
+/// Pass 1: how much each (object, estimate) pair is matched over the sequence.
+struct Alignment {
+    /// Estimates (columns of `global`).
+    ne: usize,
+    /// Frames each true object and each estimate appears in.
+    truth_count: Vec<usize>,
+    est_count: Vec<usize>,
+    /// Per pair (object-major): the global alignment score, the Jaccard index of the summed
+    /// Jaccard-normalised similarities of each frame.
+    global: Vec<f64>,
+}
+
+impl Alignment {
+    fn over(frames: &[MotFrame], sims: &[CostMatrix], ids: &Ids) -> Self {
+        let (nt, ne) = (ids.truth.len(), ids.est.len());
+        let mut potential = vec![0.0; nt * ne];
+        let (mut truth_count, mut est_count) = (vec![0usize; nt], vec![0usize; ne]);
+        for (f, s) in frames.iter().zip(sims) {
+            let row_sum: Vec<f64> = (0..s.rows())
+                .map(|i| (0..s.cols()).map(|j| s.at(i, j)).sum())
+                .collect();
+            let col_sum: Vec<f64> = (0..s.cols())
+                .map(|j| (0..s.rows()).map(|i| s.at(i, j)).sum())
+                .collect();
+            for (i, t) in f.truth.iter().enumerate() {
+                for (j, e) in f.est.iter().enumerate() {
+                    let denom = row_sum[i] + col_sum[j] - s.at(i, j);
+                    if denom > 0.0 {
+                        potential[ids.truth[t] * ne + ids.est[e]] += s.at(i, j) / denom;
+                    }
                 }
             }
+            f.truth.iter().for_each(|t| truth_count[ids.truth[t]] += 1);
+            f.est.iter().for_each(|e| est_count[ids.est[e]] += 1);
         }
-        f.truth.iter().for_each(|t| truth_count[truth_ids[t]] += 1);
-        f.est.iter().for_each(|e| est_count[est_ids[e]] += 1);
+        let mut alignment = Self {
+            ne,
+            truth_count,
+            est_count,
+            global: Vec::new(),
+        };
+        alignment.global = (0..nt * ne)
+            .map(|k| alignment.jaccard(k, potential[k]))
+            .collect();
+        alignment
     }
-    let jaccard = |a: usize, b: usize, shared: f64| {
-        let denom = (truth_count[a] + est_count[b]) as f64 - shared;
+
+    /// The Jaccard index of pair `k` (object-major) given the frames it `shared`.
+    fn jaccard(&self, k: usize, shared: f64) -> f64 {
+        let denom = (self.truth_count[k / self.ne] + self.est_count[k % self.ne]) as f64 - shared;
         if denom > 0.0 { shared / denom } else { 0.0 }
-    };
-    let global: Vec<f64> = (0..nt * ne)
-        .map(|k| jaccard(k / ne, k % ne, potential[k]))
-        .collect();
+    }
 
-    // Pass 2: each frame's matching, thresholded at every alpha.
-    let mut tp = [0usize; ALPHAS];
-    let mut loc = [0.0f64; ALPHAS];
-    let mut matched = vec![[0usize; ALPHAS]; nt * ne];
-    for (f, sim) in frames.iter().zip(&sims) {
-        let (ti, ej): (Vec<usize>, Vec<usize>) = (
-            f.truth.iter().map(|t| truth_ids[t]).collect(),
-            f.est.iter().map(|e| est_ids[e]).collect(),
-        );
-        let cost = CostMatrix::from_fn(ti.len(), ej.len(), |i, j| {
-            -global[ti[i] * ne + ej[j]] * sim.at(i, j)
-        });
-        for (i, j) in assign(&cost).pairs {
-            let s = sim.at(i, j);
-            for a in 0..ALPHAS {
-                if s >= alpha(a) - EPS {
-                    tp[a] += 1;
-                    loc[a] += s;
-                    matched[ti[i] * ne + ej[j]][a] += 1;
+    /// HOTA and its parts from pass 2's `matches`, averaged over the thresholds.
+    fn scores(&self, matches: &Matches) -> HotaScores {
+        let truth_total: usize = self.truth_count.iter().sum();
+        let est_total: usize = self.est_count.iter().sum();
+        let mut sums = HotaScores {
+            hota: 0.0,
+            deta: 0.0,
+            assa: 0.0,
+            loca: 0.0,
+        };
+        for a in 0..ALPHAS {
+            let tp = matches.tp[a] as f64;
+            let deta = tp / ((truth_total + est_total - matches.tp[a]) as f64).max(1.0);
+            let assa = (0..self.global.len())
+                .map(|k| {
+                    let m = matches.pairs[k][a] as f64;
+                    m * self.jaccard(k, m)
+                })
+                .sum::<f64>()
+                / tp.max(1.0);
+            sums.hota += (deta * assa).sqrt();
+            sums.deta += deta;
+            sums.assa += assa;
+            // The reference implementation's convention: 1 where nothing matched.
+            sums.loca += matches.similarity[a].max(EPS) / tp.max(EPS);
+        }
+        let n = ALPHAS as f64;
+        HotaScores {
+            hota: sums.hota / n,
+            deta: sums.deta / n,
+            assa: sums.assa / n,
+            loca: sums.loca / n,
+        }
+    }
+}
+
+/// Pass 2: each frame's matching, thresholded at every alpha.
+struct Matches {
+    /// True positives per threshold.
+    tp: [usize; ALPHAS],
+    /// Summed similarity of the true positives per threshold.
+    similarity: [f64; ALPHAS],
+    /// Per pair (object-major) and threshold: the frames it is a true positive in.
+    pairs: Vec<[usize; ALPHAS]>,
+}
+
+impl Matches {
+    fn over(frames: &[MotFrame], sims: &[CostMatrix], ids: &Ids, alignment: &Alignment) -> Self {
+        let ne = alignment.ne;
+        let mut m = Self {
+            tp: [0; ALPHAS],
+            similarity: [0.0; ALPHAS],
+            pairs: vec![[0; ALPHAS]; alignment.global.len()],
+        };
+        for (f, sim) in frames.iter().zip(sims) {
+            let (ti, ej): (Vec<usize>, Vec<usize>) = (
+                f.truth.iter().map(|t| ids.truth[t]).collect(),
+                f.est.iter().map(|e| ids.est[e]).collect(),
+            );
+            // The matching weighs each pair's similarity by its global alignment.
+            let cost = CostMatrix::from_fn(ti.len(), ej.len(), |i, j| {
+                -alignment.global[ti[i] * ne + ej[j]] * sim.at(i, j)
+            });
+            for (i, j) in assign(&cost).pairs {
+                let s = sim.at(i, j);
+                for a in 0..ALPHAS {
+                    if s >= alpha(a) - EPS {
+                        m.tp[a] += 1;
+                        m.similarity[a] += s;
+                        m.pairs[ti[i] * ne + ej[j]][a] += 1;
+                    }
                 }
             }
         }
+        m
     }
-
-    let truth_total: usize = truth_count.iter().sum();
-    let est_total: usize = est_count.iter().sum();
-    let mut sums = HotaScores {
-        hota: 0.0,
-        deta: 0.0,
-        assa: 0.0,
-        loca: 0.0,
-    };
-    for a in 0..ALPHAS {
-        let tp_a = tp[a] as f64;
-        let deta = tp_a / ((truth_total + est_total - tp[a]) as f64).max(1.0);
-        let assa = (0..nt * ne)
-            .map(|k| {
-                let m = matched[k][a] as f64;
-                m * jaccard(k / ne, k % ne, m)
-            })
-            .sum::<f64>()
-            / tp_a.max(1.0);
-        sums.hota += (deta * assa).sqrt();
-        sums.deta += deta;
-        sums.assa += assa;
-        // The reference implementation's convention: 1 where nothing matched.
-        sums.loca += loc[a].max(EPS) / tp_a.max(EPS);
-    }
-    let n = ALPHAS as f64;
-    Some(HotaScores {
-        hota: sums.hota / n,
-        deta: sums.deta / n,
-        assa: sums.assa / n,
-        loca: sums.loca / n,
-    })
 }
 
 /// The `a`-th localisation threshold.

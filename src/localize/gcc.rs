@@ -15,12 +15,10 @@ use std::f64::consts::PI;
 use crate::dsp::{Complex, MultiSpectrum};
 use crate::geometry::MicArray;
 
+use super::lag_kernel::{SINC_TAPS, band_kernel, sinc_kernel};
+use super::sliding_max::sliding_max;
 use super::subband_lags::SubbandLags;
 
-/// Sinc taps on each side of the interpolation point.
-const SINC_TAPS: usize = 8;
-/// Kaiser window shape of the interpolation kernel.
-const KAISER_BETA: f64 = 8.0;
 /// Extra lag range (samples) tabulated beyond d_ab / c, so lookups at the physical limit interpolate.
 const LAG_MARGIN_SAMPLES: f64 = 1.0;
 
@@ -128,49 +126,6 @@ pub(crate) struct GccBank {
     window_power: f64,
     /// FFT length (samples).
     pub frame: usize,
-}
-
-/// Zeroth-order modified Bessel function of the first kind (power series).
-fn bessel_i0(x: f64) -> f64 {
-    let mut sum = 1.0;
-    let mut term = 1.0;
-    let q = x * x / 4.0;
-    for k in 1..64 {
-        term *= q / (k * k) as f64;
-        sum += term;
-        if term < sum * 1e-16 {
-            break;
-        }
-    }
-    sum
-}
-
-/// Kaiser-windowed sinc evaluated at `x` samples from the interpolation point.
-fn sinc_kernel(x: f64) -> f64 {
-    let k = SINC_TAPS as f64;
-    if x.abs() >= k {
-        return 0.0;
-    }
-    let sinc = if x.abs() < 1e-12 {
-        1.0
-    } else {
-        (PI * x).sin() / (PI * x)
-    };
-    let r = x / k;
-    sinc * bessel_i0(KAISER_BETA * (1.0 - r * r).sqrt()) / bessel_i0(KAISER_BETA)
-}
-
-/// Mean over bins k in `band` of cos(2 pi k d / frame), for a lag of `d` samples (closed form of
-/// the sum of cosines in arithmetic progression).
-fn band_kernel(band: (usize, usize), frame: usize, d: f64) -> f64 {
-    let n = (band.1 + 1 - band.0) as f64;
-    let b = 2.0 * PI * d / frame as f64;
-    let half = (b / 2.0).sin();
-    if half.abs() < 1e-12 {
-        return 1.0;
-    }
-    let a = b * band.0 as f64;
-    (n * b / 2.0).sin() / half * (a + (n - 1.0) * b / 2.0).cos() / n
 }
 
 impl GccBank {
@@ -529,50 +484,6 @@ impl GccBank {
     }
 }
 
-/// Centred sliding maximum over +-`w` (clipped at the ends), van Herk/Gil-Werman in O(n).
-/// `work` must hold at least `2 * src.len()` values.
-fn sliding_max(src: &[f64], w: usize, dst: &mut [f64], work: &mut [f64]) {
-    let n = src.len();
-    if w == 0 || n == 0 {
-        dst.copy_from_slice(src);
-        return;
-    }
-    let max = |a: f64, b: f64| if a > b { a } else { b };
-    let block = 2 * w + 1;
-    let (prefix, suffix) = work.split_at_mut(n);
-    // prefix[i]: max from the start of i's block to i; suffix[i]: max from i to its block's end.
-    let mut start = 0;
-    while start < n {
-        let end = (start + block).min(n);
-        prefix[start] = src[start];
-        for i in start + 1..end {
-            prefix[i] = max(prefix[i - 1], src[i]);
-        }
-        suffix[end - 1] = src[end - 1];
-        for i in (start..end - 1).rev() {
-            suffix[i] = max(suffix[i + 1], src[i]);
-        }
-        start = end;
-    }
-    // A window of at most one block spans at most two blocks. Inside one block it either starts
-    // at the block's start (use the prefix of its end) or ends at the signal's end (the suffix).
-    let mut lo_block = 0;
-    for (i, d) in dst.iter_mut().enumerate() {
-        let lo = i.saturating_sub(w);
-        let hi = (i + w).min(n - 1);
-        if lo >= lo_block + block {
-            lo_block += block;
-        }
-        *d = if hi >= lo_block + block {
-            max(suffix[lo], prefix[hi])
-        } else if lo == lo_block {
-            prefix[hi]
-        } else {
-            suffix[lo]
-        };
-    }
-}
-
 /// Time-domain GCC of a pair computed directly (for tests): sum over band bins, normalised.
 #[cfg(test)]
 pub(crate) fn direct_gcc(
@@ -602,7 +513,7 @@ mod tests {
     const C: f64 = 343.0;
 
     #[test]
-    fn sliding_max_matches_brute_force() {
+    fn max_filter_is_the_sliding_maximum_of_each_pair_table() {
         let array = MicArray::new(
             "a",
             vec![Vec3::zeros(), Vec3::new(0.3, 0.0, 0.0)],

@@ -12,9 +12,11 @@ mod config;
 mod directions;
 mod gcc;
 mod geodesic;
+mod lag_kernel;
 mod masking;
 mod noise_floor;
 mod region_contraction;
+mod sliding_max;
 mod subband_lags;
 #[cfg(test)]
 mod synth;

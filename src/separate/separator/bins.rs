@@ -306,48 +306,56 @@ impl Separator {
         w.frame_gains[k * n..(k + 1) * n].copy_from_slice(&w.gains[..n]);
         w.frame_bf[k * n..(k + 1) * n].copy_from_slice(&w.bf[..n]);
         if self.harmonic.enabled() && self.post.enabled() {
-            // Each stream's claim is as ambiguous as its least resolved audible competitor; the
-            // same measure weighs the bins its F0 is read from.
-            let loading = self.cfg.null_loading;
-            let pairs = &mut w.pair_unresolved[k * n * n..(k + 1) * n * n];
-            // A pair's value is read on the first stream's group and depends only on the
-            // steering there: it is recomputed with that group's fixed beamformers.
-            let unresolved = |g: usize, a: usize, b: usize| {
-                let m = self.groups[g].channels.len();
-                let va = &w.walk[g][a * m..(a + 1) * m];
-                let vb = &w.walk[g][b * m..(b + 1) * m];
-                self.harmonic.unresolved(harmonic::leakage(va, vb, loading))
-            };
-            for i in 0..n {
-                for j in i + 1..n {
-                    let (gi, gj) = (self.streams[i].group, self.streams[j].group);
-                    // The leakage is symmetric in the two steering vectors on one group.
-                    if gi == gj {
-                        if w.rebuild[gi] {
-                            let u = unresolved(gi, i, j);
-                            pairs[i * n + j] = u;
-                            pairs[j * n + i] = u;
-                        }
-                        continue;
-                    }
+            self.unresolved_pairs(k);
+        }
+    }
+
+    /// How unresolved each pair of streams is at bin `k` (recomputed where a group's steering
+    /// moved), and each stream's least resolved audible competitor's value.
+    fn unresolved_pairs(&mut self, k: usize) {
+        let n = self.streams.len();
+        let w = &mut self.work;
+        // Each stream's claim is as ambiguous as its least resolved audible competitor; the
+        // same measure weighs the bins its F0 is read from.
+        let loading = self.cfg.null_loading;
+        let pairs = &mut w.pair_unresolved[k * n * n..(k + 1) * n * n];
+        // A pair's value is read on the first stream's group and depends only on the
+        // steering there: it is recomputed with that group's fixed beamformers.
+        let unresolved = |g: usize, a: usize, b: usize| {
+            let m = self.groups[g].channels.len();
+            let va = &w.walk[g][a * m..(a + 1) * m];
+            let vb = &w.walk[g][b * m..(b + 1) * m];
+            self.harmonic.unresolved(harmonic::leakage(va, vb, loading))
+        };
+        for i in 0..n {
+            for j in i + 1..n {
+                let (gi, gj) = (self.streams[i].group, self.streams[j].group);
+                // The leakage is symmetric in the two steering vectors on one group.
+                if gi == gj {
                     if w.rebuild[gi] {
-                        pairs[i * n + j] = unresolved(gi, i, j);
+                        let u = unresolved(gi, i, j);
+                        pairs[i * n + j] = u;
+                        pairs[j * n + i] = u;
                     }
-                    if w.rebuild[gj] {
-                        pairs[j * n + i] = unresolved(gj, j, i);
-                    }
+                    continue;
+                }
+                if w.rebuild[gi] {
+                    pairs[i * n + j] = unresolved(gi, i, j);
+                }
+                if w.rebuild[gj] {
+                    pairs[j * n + i] = unresolved(gj, j, i);
                 }
             }
-            // unresolved() is monotone, so the least resolved audible competitor's value is
-            // the largest of the pairs'.
-            let floor = self.harmonic.unresolved_floor();
-            for i in 0..n {
-                w.frame_unresolved[k * n + i] = if w.priors[i] > 0.0 {
-                    least_resolved(pairs, i, &w.priors, floor, |_| 1.0)
-                } else {
-                    floor
-                };
-            }
+        }
+        // unresolved() is monotone, so the least resolved audible competitor's value is
+        // the largest of the pairs'.
+        let floor = self.harmonic.unresolved_floor();
+        for i in 0..n {
+            w.frame_unresolved[k * n + i] = if w.priors[i] > 0.0 {
+                least_resolved(pairs, i, &w.priors, floor, |_| 1.0)
+            } else {
+                floor
+            };
         }
     }
 

@@ -135,20 +135,14 @@ impl Separator {
         }
     }
 
-    /// Stream `i`'s pitch this frame, read from its post-filtered magnitudes (of the reference
-    /// microphone with `to_ref`, else of its beamformer): the F0 from its comb up to bin `top`,
-    /// each candidate weighed by the periodicity of all of them, the voicing from that
-    /// periodicity, with its activity gate folded in and its contest salience measured
-    /// against the mixture's local level (each part as far as the settings ask for it).
-    fn stream_pitch(&mut self, i: usize, to_ref: bool, top: usize) -> Pitch {
+    /// Loads stream `i`'s post-filtered magnitudes (of the reference microphone with `to_ref`,
+    /// else of its beamformer) and, up to bin `top`, how reliably each bin is its own: as far
+    /// as no audible competitor's beamformer passes the same mixture there.
+    fn load_spectrum(&mut self, i: usize, to_ref: bool, top: usize) {
         let n = self.streams.len();
         let (ch, rf) = (self.channels, self.reference);
-        self.streams[i].held = false;
         let floor = self.harmonic.unresolved_floor();
         let w = &mut self.work;
-        if w.priors[i] <= 0.0 {
-            return Pitch::default();
-        }
         for k in self.k_lo..w.mag.len() {
             let g = w.frame_gains[k * n + i];
             let v = if to_ref {
@@ -166,6 +160,20 @@ impl Separator {
             let r = 1.0 - u;
             w.reliability[k] = r * r;
         }
+    }
+
+    /// Stream `i`'s pitch this frame, read from its post-filtered magnitudes (of the reference
+    /// microphone with `to_ref`, else of its beamformer): the F0 from its comb up to bin `top`,
+    /// each candidate weighed by the periodicity of all of them, the voicing from that
+    /// periodicity, with its activity gate folded in and its contest salience measured
+    /// against the mixture's local level (each part as far as the settings ask for it).
+    fn stream_pitch(&mut self, i: usize, to_ref: bool, top: usize) -> Pitch {
+        self.streams[i].held = false;
+        if self.work.priors[i] <= 0.0 {
+            return Pitch::default();
+        }
+        self.load_spectrum(i, to_ref, top);
+        let w = &mut self.work;
         let s = &mut self.streams[i];
         // The gate's smoothing runs whether or not the pitch is known, so its state does not
         // depend on where the pitch comes from.
