@@ -161,8 +161,23 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
         (Some(lines), Some(a)) => {
             // The audio section scored `with_signal`, in order.
             let labels: Vec<_> = a.sources.iter().map(|s| s.label).collect();
+            let off_stream: Vec<Vec<(f64, f64)>> = a
+                .sources
+                .iter()
+                .map(|s| {
+                    let strays = &s.continuity.strays;
+                    strays.iter().map(|b| (b.start_s, b.end_s)).collect()
+                })
+                .collect();
             let fs = f64::from(scene.layout.sample_rate);
-            Some(score_pitch(lines, &with_signal, &labels, fs, cfg))
+            Some(score_pitch(
+                lines,
+                &with_signal,
+                &labels,
+                &off_stream,
+                fs,
+                cfg,
+            ))
         }
     };
     Ok(EvalReport {

@@ -6,6 +6,8 @@
 //! label the audio section mapped to the source is compared with it frame by frame: how many of
 //! the source's voiced frames the label reads as voiced, how many of its silent or unvoiced ones
 //! it reads as voiced anyway (a neighbour's leak), and how close its F0 is where both are voiced.
+//! The same figures over the frames of the blocks the source's own stream does not carry (the
+//! audio section's stray blocks) say how much of a lost block the pitch explains.
 
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +30,22 @@ pub struct PitchReport {
     pub sources: Vec<SourcePitch>,
     /// Means over the sources that have each figure.
     pub mean: PitchFigures,
+    /// Every source's frames in the blocks its own stream does not carry, pooled; absent when
+    /// no source has such a frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub off_stream: Option<FrameFigures>,
+}
+
+/// Pitch figures over a set of frames, with their counts.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct FrameFigures {
+    /// Frames in which the label had a stream.
+    pub frames: usize,
+    /// Of those, frames in which the source is voiced.
+    pub voiced_frames: usize,
+    /// The figures.
+    #[serde(flatten)]
+    pub figures: PitchFigures,
 }
 
 /// One source's pitch scores.
@@ -44,6 +62,10 @@ pub struct SourcePitch {
     /// The figures.
     #[serde(flatten)]
     pub figures: PitchFigures,
+    /// The same over its frames in the blocks its own stream does not carry; absent without
+    /// such a frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub off_stream: Option<FrameFigures>,
 }
 
 /// Shares of frames; absent when their frames are none.
@@ -60,7 +82,7 @@ pub struct PitchFigures {
 }
 
 /// Frame counts of one source.
-#[derive(Default)]
+#[derive(Default, Clone, Copy)]
 struct Counts {
     frames: usize,
     voiced: usize,
@@ -96,14 +118,34 @@ impl Counts {
             gross_error: share(self.gross, self.voiced_read),
         }
     }
+
+    /// The counts with their figures; `None` without a frame.
+    fn frame_figures(&self) -> Option<FrameFigures> {
+        (self.frames > 0).then(|| FrameFigures {
+            frames: self.frames,
+            voiced_frames: self.voiced,
+            figures: self.figures(),
+        })
+    }
+
+    fn merge(&mut self, o: &Counts) {
+        self.frames += o.frames;
+        self.voiced += o.voiced;
+        self.voiced_read += o.voiced_read;
+        self.unvoiced_read += o.unvoiced_read;
+        self.within += o.within;
+        self.gross += o.gross;
+    }
 }
 
 /// Scores `lines` against `sources`, each compared with its mapped label (`labels[i]`, none:
-/// not scored), their signals at `sample_rate` Hz.
+/// not scored), their signals at `sample_rate` Hz; `off_stream[i]` holds the (start, end)
+/// times (s) of the blocks source i's own stream does not carry (missing: none).
 pub fn score_pitch(
     lines: &[PitchLine],
     sources: &[&TruthSource],
     labels: &[Option<Label>],
+    off_stream: &[Vec<(f64, f64)>],
     sample_rate: f64,
     cfg: &EvalConfig,
 ) -> PitchReport {
@@ -114,23 +156,30 @@ pub fn score_pitch(
         .map(|l| (l.t * sample_rate).round().max(0.0) as usize)
         .collect();
     let mut scored = Vec::new();
-    for (src, label) in sources.iter().zip(labels) {
+    let mut pooled = Counts::default();
+    for (i, (src, label)) in sources.iter().zip(labels).enumerate() {
         let (Some(signal), Some(label)) = (src.signal.as_deref(), *label) else {
             continue;
         };
+        let blocks = off_stream.get(i).map_or(&[][..], Vec::as_slice);
         let truth = yin.track_at(signal, &centres);
-        let mut c = Counts::default();
+        let (mut c, mut off) = (Counts::default(), Counts::default());
         for (line, t) in lines.iter().zip(&truth) {
             if let Some(p) = line.labels.iter().find(|p| p.label == label) {
                 c.add(*t, p.f0, p.voicing, cfg);
+                if blocks.iter().any(|&(a, b)| (a..b).contains(&line.t)) {
+                    off.add(*t, p.f0, p.voicing, cfg);
+                }
             }
         }
+        pooled.merge(&off);
         scored.push(SourcePitch {
             id: src.id.clone(),
             label,
             frames: c.frames,
             voiced_frames: c.voiced,
             figures: c.figures(),
+            off_stream: off.frame_figures(),
         });
     }
     let mean = |f: fn(&PitchFigures) -> Option<f64>| mean_of(scored.iter().map(|s| f(&s.figures)));
@@ -144,6 +193,7 @@ pub fn score_pitch(
         tolerance: cfg.pitch_tolerance,
         sources: scored,
         mean,
+        off_stream: pooled.frame_figures(),
     }
 }
 
@@ -204,7 +254,7 @@ mod tests {
                 (0.0, 0.0)
             }
         });
-        let r = score_pitch(&right, &[&src], &[Some(l)], FS, &cfg);
+        let r = score_pitch(&right, &[&src], &[Some(l)], &[], FS, &cfg);
         let f = r.sources[0].figures;
         assert!(r.sources[0].voiced_frames >= 28, "{:?}", r.sources[0]);
         // A frame straddling an edge of the voice may count as voiced for YIN and not for
@@ -218,7 +268,7 @@ mod tests {
 
         // Reading the subharmonic throughout, and voicing in the silence before the voice.
         let wrong = lines(l, |t| if t < 1.5 { (75.0, 1.0) } else { (0.0, 0.0) });
-        let r = score_pitch(&wrong, &[&src], &[Some(l)], FS, &cfg);
+        let r = score_pitch(&wrong, &[&src], &[Some(l)], &[], FS, &cfg);
         let f = r.sources[0].figures;
         assert_eq!(
             (f.f0_within_tolerance, f.gross_error),
@@ -226,6 +276,33 @@ mod tests {
         );
         assert!(f.false_voicing.unwrap() > 0.4, "{f:?}");
         assert_eq!(r.mean, f);
+        assert!(r.sources[0].off_stream.is_none() && r.off_stream.is_none());
+    }
+
+    #[test]
+    fn the_blocks_off_the_own_stream_are_scored_on_their_own() {
+        // The label reads the voice right in its first half and not at all in its second,
+        // and the second half is the block its own stream lost.
+        let src = source(voice(0.5, 1.5));
+        let l = Label::new(3, 0);
+        let cfg = EvalConfig::default();
+        let read = lines(l, |t| {
+            if (0.5..1.0).contains(&t) {
+                (151.0, 1.0)
+            } else {
+                (0.0, 0.0)
+            }
+        });
+        let lost = vec![vec![(1.0, 1.5)]];
+        let r = score_pitch(&read, &[&src], &[Some(l)], &lost, FS, &cfg);
+        let whole = r.sources[0].figures.voiced_recall.unwrap();
+        let off = r.sources[0].off_stream.expect("frames in the lost block");
+        assert!((0.4..0.6).contains(&whole), "{whole}");
+        assert!(off.voiced_frames >= 14, "{off:?}");
+        assert_eq!(off.figures.voiced_recall, Some(0.0));
+        assert_eq!(off.figures.f0_within_tolerance, None);
+        // One source: the pooled figures are its own.
+        assert_eq!(r.off_stream, Some(off));
     }
 
     #[test]
@@ -233,9 +310,9 @@ mod tests {
         let src = source(voice(0.5, 1.5));
         let cfg = EvalConfig::default();
         let l = lines(Label::new(3, 0), |_| (150.0, 1.0));
-        let r = score_pitch(&l, &[&src], &[None], FS, &cfg);
+        let r = score_pitch(&l, &[&src], &[None], &[], FS, &cfg);
         assert!(r.sources.is_empty() && r.mean == PitchFigures::default());
-        let r = score_pitch(&l, &[&src], &[Some(Label::new(4, 0))], FS, &cfg);
+        let r = score_pitch(&l, &[&src], &[Some(Label::new(4, 0))], &[], FS, &cfg);
         assert_eq!(r.sources[0].frames, 0);
         assert_eq!(r.sources[0].figures, PitchFigures::default());
     }

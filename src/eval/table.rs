@@ -380,7 +380,19 @@ fn pitch(out: &mut String, p: &PitchReport) -> fmt::Result {
         let frames = format!("{}/{}", s.voiced_frames, s.frames);
         pitch_row(out, &s.id, &s.label.to_string(), &frames, &s.figures)?;
     }
-    pitch_row(out, "mean", "", "", &p.mean)
+    pitch_row(out, "mean", "", "", &p.mean)?;
+    let Some(pooled) = &p.off_stream else {
+        return Ok(());
+    };
+    writeln!(out, "  In the blocks off the source's own stream:")?;
+    for s in &p.sources {
+        if let Some(o) = &s.off_stream {
+            let frames = format!("{}/{}", o.voiced_frames, o.frames);
+            pitch_row(out, &s.id, &s.label.to_string(), &frames, &o.figures)?;
+        }
+    }
+    let frames = format!("{}/{}", pooled.voiced_frames, pooled.frames);
+    pitch_row(out, "all", "", &frames, &pooled.figures)
 }
 
 impl Display for EvalReport {
