@@ -77,8 +77,9 @@ struct Ids {
 struct Alignment {
     /// Estimates (columns of `global`).
     ne: usize,
-    /// Frames each true object and each estimate appears in.
+    /// Frames each true object appears in.
     truth_count: Vec<usize>,
+    /// Frames each estimate appears in.
     est_count: Vec<usize>,
     /// Per pair (object-major): the global alignment score, the Jaccard index of the summed
     /// Jaccard-normalised similarities of each frame.

@@ -36,7 +36,7 @@ use crate::scene::{Scene, SceneError};
 pub use config::{EvalConfig, FrameAnchor};
 pub use stats::Summary;
 
-use audio::{AudioInputs, AudioReport, score_audio};
+use audio::{AudioInputs, AudioReport, SourceAudio, score_audio};
 use measurements::{MeasurementsReport, score_measurements};
 use pitch::{PitchReport, score_pitch};
 use tracks::{TracksReport, score_tracks};
@@ -161,23 +161,9 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
         (Some(lines), Some(a)) => {
             // The audio section scored `with_signal`, in order.
             let labels: Vec<_> = a.sources.iter().map(|s| s.label).collect();
-            let off_stream: Vec<Vec<(f64, f64)>> = a
-                .sources
-                .iter()
-                .map(|s| {
-                    let strays = &s.continuity.strays;
-                    strays.iter().map(|b| (b.start_s, b.end_s)).collect()
-                })
-                .collect();
             let fs = f64::from(scene.layout.sample_rate);
-            Some(score_pitch(
-                lines,
-                &with_signal,
-                &labels,
-                &off_stream,
-                fs,
-                cfg,
-            ))
+            let off = off_stream_blocks(a);
+            Some(score_pitch(lines, &with_signal, &labels, &off, fs, cfg))
         }
     };
     Ok(EvalReport {
@@ -192,4 +178,13 @@ pub fn evaluate(scene: &Scene, out: &Output, cfg: &EvalConfig) -> Result<EvalRep
         pitch,
         notes,
     })
+}
+
+/// Per scored source, the (start, end) times (s) of the blocks its own stream does not carry.
+fn off_stream_blocks(a: &AudioReport) -> Vec<Vec<(f64, f64)>> {
+    let span = |s: &SourceAudio| -> Vec<(f64, f64)> {
+        let strays = &s.continuity.strays;
+        strays.iter().map(|b| (b.start_s, b.end_s)).collect()
+    };
+    a.sources.iter().map(span).collect()
 }

@@ -39,7 +39,7 @@ pub struct PitchReport {
 /// Pitch figures over a set of frames, with their counts.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct FrameFigures {
-    /// Frames in which the label had a stream.
+    /// Frames counted.
     pub frames: usize,
     /// Of those, frames in which the source is voiced.
     pub voiced_frames: usize,
@@ -62,8 +62,8 @@ pub struct SourcePitch {
     /// The figures.
     #[serde(flatten)]
     pub figures: PitchFigures,
-    /// The same over its frames in the blocks its own stream does not carry; absent without
-    /// such a frame.
+    /// The same over its frames in the blocks its own stream does not carry (a frame there
+    /// without the label's stream counts as read unvoiced); absent without such a frame.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub off_stream: Option<FrameFigures>,
 }
@@ -82,7 +82,7 @@ pub struct PitchFigures {
 }
 
 /// Frame counts of one source.
-#[derive(Default, Clone, Copy)]
+#[derive(Default)]
 struct Counts {
     frames: usize,
     voiced: usize,
@@ -165,11 +165,15 @@ pub fn score_pitch(
         let truth = yin.track_at(signal, &centres);
         let (mut c, mut off) = (Counts::default(), Counts::default());
         for (line, t) in lines.iter().zip(&truth) {
-            if let Some(p) = line.labels.iter().find(|p| p.label == label) {
+            let read = line.labels.iter().find(|p| p.label == label);
+            if let Some(p) = read {
                 c.add(*t, p.f0, p.voicing, cfg);
-                if blocks.iter().any(|&(a, b)| (a..b).contains(&line.t)) {
-                    off.add(*t, p.f0, p.voicing, cfg);
-                }
+            }
+            // In a lost block a frame without the label's stream (not yet born, say) is a frame
+            // it did not read, not one to leave out.
+            if blocks.iter().any(|&(a, b)| (a..b).contains(&line.t)) {
+                let (f0, voicing) = read.map_or((0.0, 0.0), |p| (p.f0, p.voicing));
+                off.add(*t, f0, voicing, cfg);
             }
         }
         pooled.merge(&off);
@@ -303,6 +307,33 @@ mod tests {
         assert_eq!(off.figures.f0_within_tolerance, None);
         // One source: the pooled figures are its own.
         assert_eq!(r.off_stream, Some(off));
+    }
+
+    #[test]
+    fn lost_blocks_follow_their_source_and_pool_every_count() {
+        // An unmapped source first: the blocks are the sources', not the scored ones'.
+        let (quiet, talker) = (source(voice(0.5, 1.5)), source(voice(0.5, 1.5)));
+        let l = Label::new(3, 0);
+        let cfg = EvalConfig::default();
+        // Right up to 1.0 s, then the subharmonic (a gross error), over two adjacent blocks.
+        let read = lines(l, |t| if t < 1.0 { (151.0, 1.0) } else { (75.0, 1.0) });
+        let lost = vec![Vec::new(), vec![(0.768, 1.28), (1.28, 1.5)]];
+        let r = score_pitch(&read, &[&quiet, &talker], &[None, Some(l)], &lost, FS, &cfg);
+        assert_eq!(r.sources.len(), 1);
+        let off = r.sources[0].off_stream.expect("frames in the lost blocks");
+        // Frames at 0.768-0.992 s read right, 1.024-1.472 s wrong: 8 against 15.
+        assert_eq!(off.frames, 23, "{off:?}");
+        let f = off.figures;
+        assert!(f.voiced_recall.unwrap() > 0.9, "{f:?}");
+        let (within, gross) = (f.f0_within_tolerance.unwrap(), f.gross_error.unwrap());
+        assert!((within - 8.0 / 23.0).abs() < 0.05 && (gross - 15.0 / 23.0).abs() < 0.05);
+        assert_eq!(r.off_stream, Some(off));
+        // A label without a stream in a lost block read nothing there.
+        let absent = lines(Label::new(4, 0), |_| (151.0, 1.0));
+        let r = score_pitch(&absent, &[&talker], &[Some(l)], &lost[1..], FS, &cfg);
+        let off = r.sources[0].off_stream.expect("the block's frames");
+        assert_eq!((r.sources[0].frames, off.frames), (0, 23));
+        assert_eq!(off.figures.voiced_recall, Some(0.0));
     }
 
     #[test]

@@ -63,12 +63,10 @@ mod tests {
             assert_eq!(sinc_kernel(-(n as f64)), sinc_kernel(n as f64));
         }
         assert_eq!(sinc_kernel(SINC_TAPS as f64 + 0.5), 0.0);
-        // Half-way between lags the windowed sinc sits near 2 / pi.
-        assert!(
-            (sinc_kernel(0.5) - 2.0 / PI).abs() < 0.01,
-            "{}",
-            sinc_kernel(0.5)
-        );
+        // Half-way between lags the sinc is 2 / pi; the window, below 1 off its centre, takes
+        // a little of it.
+        let half = sinc_kernel(0.5);
+        assert!(half < 2.0 / PI && half > 2.0 / PI - 0.03, "{half}");
     }
 
     #[test]
