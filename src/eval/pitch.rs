@@ -55,13 +55,9 @@ pub struct SourcePitch {
     pub id: String,
     /// The label the audio section mapped to it.
     pub label: Label,
-    /// Frames in which the label had a stream.
-    pub frames: usize,
-    /// Of those, frames in which the source is voiced.
-    pub voiced_frames: usize,
-    /// The figures.
+    /// Over the frames in which the label had a stream.
     #[serde(flatten)]
-    pub figures: PitchFigures,
+    pub whole: FrameFigures,
     /// The same over its frames in the blocks its own stream does not carry (a frame there
     /// without the label's stream counts as read unvoiced); absent without such a frame.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -119,13 +115,18 @@ impl Counts {
         }
     }
 
-    /// The counts with their figures; `None` without a frame.
-    fn frame_figures(&self) -> Option<FrameFigures> {
-        (self.frames > 0).then(|| FrameFigures {
+    /// The counts with their figures.
+    fn frame_figures(&self) -> FrameFigures {
+        FrameFigures {
             frames: self.frames,
             voiced_frames: self.voiced,
             figures: self.figures(),
-        })
+        }
+    }
+
+    /// [`Counts::frame_figures`], `None` without a frame.
+    fn any_frame_figures(&self) -> Option<FrameFigures> {
+        (self.frames > 0).then(|| self.frame_figures())
     }
 
     fn merge(&mut self, o: &Counts) {
@@ -180,13 +181,12 @@ pub fn score_pitch(
         scored.push(SourcePitch {
             id: src.id.clone(),
             label,
-            frames: c.frames,
-            voiced_frames: c.voiced,
-            figures: c.figures(),
-            off_stream: off.frame_figures(),
+            whole: c.frame_figures(),
+            off_stream: off.any_frame_figures(),
         });
     }
-    let mean = |f: fn(&PitchFigures) -> Option<f64>| mean_of(scored.iter().map(|s| f(&s.figures)));
+    let mean =
+        |f: fn(&PitchFigures) -> Option<f64>| mean_of(scored.iter().map(|s| f(&s.whole.figures)));
     let mean = PitchFigures {
         voiced_recall: mean(|f| f.voiced_recall),
         false_voicing: mean(|f| f.false_voicing),
@@ -197,7 +197,7 @@ pub fn score_pitch(
         tolerance: cfg.pitch_tolerance,
         sources: scored,
         mean,
-        off_stream: pooled.frame_figures(),
+        off_stream: pooled.any_frame_figures(),
     }
 }
 
@@ -259,8 +259,8 @@ mod tests {
             }
         });
         let r = score_pitch(&right, &[&src], &[Some(l)], &[], FS, &cfg);
-        let f = r.sources[0].figures;
-        assert!(r.sources[0].voiced_frames >= 28, "{:?}", r.sources[0]);
+        let f = r.sources[0].whole.figures;
+        assert!(r.sources[0].whole.voiced_frames >= 28, "{:?}", r.sources[0]);
         // A frame straddling an edge of the voice may count as voiced for YIN and not for
         // the label, or the other way round.
         assert!(f.voiced_recall.unwrap() >= 0.9, "{f:?}");
@@ -273,7 +273,7 @@ mod tests {
         // Reading the subharmonic throughout, and voicing in the silence before the voice.
         let wrong = lines(l, |t| if t < 1.5 { (75.0, 1.0) } else { (0.0, 0.0) });
         let r = score_pitch(&wrong, &[&src], &[Some(l)], &[], FS, &cfg);
-        let f = r.sources[0].figures;
+        let f = r.sources[0].whole.figures;
         assert_eq!(
             (f.f0_within_tolerance, f.gross_error),
             (Some(0.0), Some(1.0))
@@ -299,7 +299,7 @@ mod tests {
         });
         let lost = vec![vec![(1.0, 1.5)]];
         let r = score_pitch(&read, &[&src], &[Some(l)], &lost, FS, &cfg);
-        let whole = r.sources[0].figures.voiced_recall.unwrap();
+        let whole = r.sources[0].whole.figures.voiced_recall.unwrap();
         let off = r.sources[0].off_stream.expect("frames in the lost block");
         assert!((0.4..0.6).contains(&whole), "{whole}");
         assert!(off.voiced_frames >= 14, "{off:?}");
@@ -332,7 +332,7 @@ mod tests {
         let absent = lines(Label::new(4, 0), |_| (151.0, 1.0));
         let r = score_pitch(&absent, &[&talker], &[Some(l)], &lost[1..], FS, &cfg);
         let off = r.sources[0].off_stream.expect("the block's frames");
-        assert_eq!((r.sources[0].frames, off.frames), (0, 23));
+        assert_eq!((r.sources[0].whole.frames, off.frames), (0, 23));
         assert_eq!(off.figures.voiced_recall, Some(0.0));
     }
 
@@ -344,7 +344,7 @@ mod tests {
         let r = score_pitch(&l, &[&src], &[None], &[], FS, &cfg);
         assert!(r.sources.is_empty() && r.mean == PitchFigures::default());
         let r = score_pitch(&l, &[&src], &[Some(Label::new(4, 0))], &[], FS, &cfg);
-        assert_eq!(r.sources[0].frames, 0);
-        assert_eq!(r.sources[0].figures, PitchFigures::default());
+        assert_eq!(r.sources[0].whole.frames, 0);
+        assert_eq!(r.sources[0].whole.figures, PitchFigures::default());
     }
 }

@@ -6,7 +6,7 @@ use super::EvalReport;
 use super::audio::AudioReport;
 use super::bss_eval::BssFigures;
 use super::measurements::MeasurementsReport;
-use super::pitch::{PitchFigures, PitchReport};
+use super::pitch::{FrameFigures, PitchFigures, PitchReport};
 use super::stats::Summary;
 use super::tracks::{MotFigures, TrackingFigures, TracksReport};
 
@@ -344,7 +344,12 @@ fn strays(out: &mut String, a: &AudioReport) -> fmt::Result {
     Ok(())
 }
 
-fn pitch_row(
+fn pitch_row(out: &mut String, id: &str, label: &str, f: &FrameFigures) -> fmt::Result {
+    let frames = format!("{}/{}", f.voiced_frames, f.frames);
+    figures_row(out, id, label, &frames, &f.figures)
+}
+
+fn figures_row(
     out: &mut String,
     id: &str,
     label: &str,
@@ -377,22 +382,19 @@ fn pitch(out: &mut String, p: &PitchReport) -> fmt::Result {
         "source", "label", "voiced/frames", "recall", "false", "F0 ok", "gross"
     )?;
     for s in &p.sources {
-        let frames = format!("{}/{}", s.voiced_frames, s.frames);
-        pitch_row(out, &s.id, &s.label.to_string(), &frames, &s.figures)?;
+        pitch_row(out, &s.id, &s.label.to_string(), &s.whole)?;
     }
-    pitch_row(out, "mean", "", "", &p.mean)?;
+    figures_row(out, "mean", "", "", &p.mean)?;
     let Some(pooled) = &p.off_stream else {
         return Ok(());
     };
     writeln!(out, "  In the blocks off the source's own stream:")?;
     for s in &p.sources {
         if let Some(o) = &s.off_stream {
-            let frames = format!("{}/{}", o.voiced_frames, o.frames);
-            pitch_row(out, &s.id, &s.label.to_string(), &frames, &o.figures)?;
+            pitch_row(out, &s.id, &s.label.to_string(), o)?;
         }
     }
-    let frames = format!("{}/{}", pooled.voiced_frames, pooled.frames);
-    pitch_row(out, "all", "", &frames, &pooled.figures)
+    pitch_row(out, "all", "", pooled)
 }
 
 impl Display for EvalReport {
