@@ -23,7 +23,7 @@
 
 use super::config::HarmonicConfig;
 use crate::dsp::Complex;
-use comb::hann_power;
+use comb::HannTable;
 
 mod activity;
 mod comb;
@@ -100,6 +100,8 @@ const REGISTER_MAX_CONFIDENCE: f64 = 0.9;
 /// Harmonic grouping constants for one framing.
 #[derive(Debug, Clone)]
 pub struct Harmonic {
+    /// The analysis window's response, for a comb's membership of a bin.
+    hann: HannTable,
     boost: f64,
     leakage_exponent: f64,
     /// 1 / `leakage_exponent`: recovers a leakage from its unresolved value.
@@ -159,6 +161,7 @@ impl Harmonic {
             f *= 1.0 + GRID_STEP;
         }
         Self {
+            hann: HannTable::new(),
             boost: cfg.boost,
             leakage_exponent: cfg.leakage_exponent,
             inverse_leakage_exponent: 1.0 / cfg.leakage_exponent.max(1e-9),
@@ -372,7 +375,7 @@ impl Harmonic {
         }
         let step = f0 / self.hz_per_bin;
         let h = (kf / step).round().max(1.0);
-        hann_power(kf - h * step)
+        self.hann.power(kf - h * step)
     }
 
     /// Regroups one bin: `gains` are the labels' spatial gains, `unresolved` how ambiguous each
