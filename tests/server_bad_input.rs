@@ -83,7 +83,7 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     .await
     .unwrap();
     let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
-    assert_eq!(m.refused.values().sum::<u64>(), 11, "{:?}", m.refused);
+    assert_eq!(m.refused.values().sum::<u64>(), 12, "{:?}", m.refused);
     assert_eq!(m.refused["truncated"], 2);
     server.stop().await;
 }
@@ -224,6 +224,35 @@ async fn bad_bodies_are_named(rest: &Rest) {
     );
     let r = rest.post(Some(rest.key), &vec![b' '; 70 << 10]).await;
     assert_eq!((r.status, err(&r).code.as_str()), (413, "too_large"));
+    geometry_beyond_the_limits_is_named(rest).await;
+}
+
+/// Geometry that would size the localiser's tables beyond memory (microphones kilometres
+/// apart, or more of them than the limit) is refused by name before anything is built.
+async fn geometry_beyond_the_limits_is_named(rest: &Rest) {
+    let refused_by = |r: &Response, limit: &str| {
+        assert_eq!(
+            (r.status, err(r).field.as_deref()),
+            (422, Some("arrays[0].mics")),
+            "{}",
+            r.text()
+        );
+        assert!(err(r).message.contains(limit), "{}", r.text());
+    };
+    let r = rest
+        .post_edited(|b| b["arrays"][0]["mics"][1] = serde_json::json!([20000.0, 0.0, 1.0]))
+        .await;
+    refused_by(&r, "limits.max_pair_span_m");
+    let r = rest
+        .post_edited(|b| {
+            let mics: Vec<serde_json::Value> = (0..100)
+                .map(|i| serde_json::json!([0.01 * f64::from(i), 0.0, 1.0]))
+                .collect();
+            b["arrays"][0]["mics"] = serde_json::Value::Array(mics);
+            b["arrays"][0]["channels"] = serde_json::json!((0..100).collect::<Vec<_>>());
+        })
+        .await;
+    refused_by(&r, "limits.max_microphones");
 }
 
 /// A session: its token (or the admin key) opens it, also as a query parameter; a wrong one
@@ -305,6 +334,20 @@ async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::sc
     )
     .await;
     assert_eq!((r.status, err(&r).field.as_deref()), (409, Some("mics")));
+    // Moving one microphone 20 km away would size the localiser's tables beyond memory.
+    let mut far: Vec<[f64; 3]> = sc.layout.arrays[0]
+        .mics
+        .iter()
+        .map(|m| [m.x, m.y, m.z])
+        .collect();
+    far[1][0] += 20_000.0;
+    let r = put(
+        format!("{path}/arrays/{a0}"),
+        serde_json::json!({ "mics": far }),
+    )
+    .await;
+    assert_eq!((r.status, err(&r).field.as_deref()), (422, Some("mics")));
+    assert!(err(&r).message.contains("max_pair_span_m"), "{}", r.text());
     let cam = &sc.layout.cameras[0].id;
     let r = put(
         format!("{path}/cameras/{cam}"),
@@ -339,8 +382,8 @@ async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::sc
 
 /// One bad message of each kind, to send just after the audio of samples [4096, 5120) of `sc`:
 /// six audio frames (wrong channel count, truncated, header only, over the size limit, NaN
-/// sample, going backwards) and five JSON messages (malformed, unknown type, unknown camera,
-/// negative box width, detections going backwards).
+/// sample, going backwards) and six JSON messages (malformed, unknown type, unknown camera,
+/// negative box width, detections going backwards, detections from far ahead).
 fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
     let audio = sc.audio.as_ref().unwrap();
     let ch = audio.channels;
@@ -397,6 +440,11 @@ fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
             "{{\"type\":\"detections\",\"t\":{},\"camera\":\"{cam}\",\"boxes\":[]}}",
             last_det_t - 0.05
         )),
+        // From a clock a billion seconds ahead: refused, so the camera's next frame is not
+        // locked out as going backwards.
+        bad_json(&format!(
+            "{{\"type\":\"detections\",\"t\":1e9,\"camera\":\"{cam}\",\"boxes\":[]}}"
+        )),
     ]
 }
 
@@ -417,5 +465,6 @@ fn every_refusal_is_named(e: &[ErrorBody]) {
     find_saying(e, "unknown_camera", "camera", "cam9");
     find(e, "bad_box", Some("boxes[0].w"));
     find(e, "time_backwards", Some("t"));
-    assert_eq!(e.len(), 11, "{e:#?}");
+    find_saying(e, "too_early", "t", "max_lead_s");
+    assert_eq!(e.len(), 12, "{e:#?}");
 }

@@ -150,11 +150,10 @@ impl Camera {
         if id.is_empty() {
             return Err(GeometryError::new("id", "must not be empty"));
         }
-        if !(width.is_finite() && height.is_finite() && width >= 1.0 && height >= 1.0) {
-            return Err(GeometryError::new(
-                "width",
-                "width and height must be at least 1 pixel",
-            ));
+        for (field, v) in [("width", width), ("height", height)] {
+            if !(v.is_finite() && v >= 1.0) {
+                return Err(GeometryError::new(field, "must be at least 1 pixel"));
+            }
         }
         check_finite("projection", projection.as_slice())?;
         let m = projection.fixed_view::<3, 3>(0, 0).into_owned();

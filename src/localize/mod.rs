@@ -164,16 +164,21 @@ impl Localizer {
         &self.cfg
     }
 
-    /// Rebuilds every geometry-dependent table for a recalibrated layout. The noise floors of
-    /// arrays whose channels did not change are kept.
-    pub fn set_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
+    /// Whether [`Localizer::set_layout`] would take `layout`, without changing anything.
+    pub fn check_layout(&self, layout: &Layout) -> Result<(), ConfigError> {
         if f64::from(layout.sample_rate) != self.sample_rate {
             return Err(ConfigError::new(
                 "sample_rate",
                 "the layout's sample rate changed; build a new localiser",
             ));
         }
-        self.cfg.validate(layout)?;
+        self.cfg.validate(layout)
+    }
+
+    /// Rebuilds every geometry-dependent table for a recalibrated layout. The noise floors of
+    /// arrays whose channels did not change are kept.
+    pub fn set_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
+        self.check_layout(layout)?;
         let mut old = std::mem::take(&mut self.arrays);
         for (index, array) in layout.arrays.iter().enumerate() {
             if array.channels.is_empty() {

@@ -53,6 +53,17 @@ impl AudioHistory {
 
     /// Appends `count` samples of silence to every channel (to bridge a gap in the input).
     pub fn append_silence(&mut self, count: usize) {
+        if count >= self.capacity {
+            // Only the last `capacity` samples would survive the trim: the rest is never built,
+            // so a long gap costs no more memory than the history holds.
+            for ch in &mut self.channels {
+                ch.clear();
+                ch.resize(self.capacity, 0.0);
+            }
+            self.end += count as u64;
+            self.start = self.end - self.capacity as u64;
+            return;
+        }
         for ch in &mut self.channels {
             ch.extend(std::iter::repeat_n(0.0, count));
         }
@@ -145,6 +156,41 @@ mod tests {
         let mut tail = [1.0; 3];
         h.read(0, 10, &mut tail).unwrap();
         assert_eq!(tail, [0.0; 3]);
+    }
+
+    #[test]
+    fn a_gap_longer_than_the_history_costs_only_the_history() {
+        // A gap of a trillion samples on 100 channels would be 800 TB if built; it keeps the
+        // last `capacity` samples of silence, exactly as a short gap trimmed would.
+        let mut h = AudioHistory::new(100, 16);
+        h.append_interleaved(&[1.0; 100 * 4]);
+        let gap = 1_000_000_000_000usize;
+        h.append_silence(gap);
+        assert_eq!(h.end(), 4 + gap as u64);
+        assert!(h.channels.iter().all(|c| c.len() == 16));
+        let mut out = [1.0; 16];
+        h.read(99, h.end() as i64 - 16, &mut out).unwrap();
+        assert_eq!(out, [0.0; 16]);
+        assert!(
+            h.read(0, h.end() as i64 - 17, &mut out).is_err(),
+            "discarded"
+        );
+        // New samples follow the silence.
+        h.append_interleaved(&[2.0; 100]);
+        let mut last = [0.0; 2];
+        h.read(0, h.end() as i64 - 2, &mut last).unwrap();
+        assert_eq!(last, [0.0, 2.0]);
+        // The same as a gap of exactly the capacity and one just short of it.
+        for gap in [15, 16] {
+            let mut h = AudioHistory::new(1, 16);
+            h.append_interleaved(&[1.0; 4]);
+            h.append_silence(gap);
+            let mut out = [9.0; 16];
+            h.read(0, h.end() as i64 - 16, &mut out).unwrap();
+            let ones = 16usize.saturating_sub(gap);
+            assert!(out[..ones].iter().all(|&v| v == 1.0), "gap {gap}: {out:?}");
+            assert!(out[ones..].iter().all(|&v| v == 0.0), "gap {gap}: {out:?}");
+        }
     }
 
     #[test]

@@ -69,6 +69,11 @@ pub struct PipelineConfig {
     pub min_box_score: f64,
     /// Longest gap in the audio (seconds) that is bridged with silence; a longer jump is refused.
     pub max_gap_s: f64,
+    /// How far (seconds) a camera or device frame's time may run ahead of the session's present
+    /// (the audio received so far, or in a session without audio its sensors' newest time);
+    /// a frame further ahead is refused with `too_early`, so a wrong clock can neither make the
+    /// session hold frames without bound nor step through hours of empty time.
+    pub max_lead_s: f64,
     /// Whether separated audio is produced.
     pub separation: bool,
     /// Settings of the SRP-PHAT localiser.
@@ -92,6 +97,7 @@ impl Default for PipelineConfig {
             cameras: true,
             min_box_score: 0.0,
             max_gap_s: 2.0,
+            max_lead_s: 10.0,
             separation: true,
             localize: LocalizerConfig::default(),
             track: TrackerConfig::default(),
@@ -123,6 +129,9 @@ impl PipelineConfig {
         }
         if !(0.0..=60.0).contains(&self.max_gap_s) {
             return Err(ConfigError::new("max_gap_s", "must be in 0..=60 s"));
+        }
+        if !(0.1..=3600.0).contains(&self.max_lead_s) {
+            return Err(ConfigError::new("max_lead_s", "must be in 0.1..=3600 s"));
         }
         self.speaking.validate().map_err(|e| e.within("speaking"))
     }

@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use crate::geometry::Layout;
-use crate::scene::{AudioMeasurementFrame, DetectionFrame};
+use crate::scene::{AudioMeasurementFrame, DetectionFrame, box_problem};
 
 /// Why an inbound message was refused.
 #[derive(Debug, Clone, PartialEq, Serialize, thiserror::Error)]
@@ -104,19 +104,8 @@ pub fn check_detections(
     check_time(frame.t, last_t)?;
     for (i, b) in frame.boxes.iter().enumerate() {
         let f = |n: &str| format!("boxes[{i}].{n}");
-        if ![b.x, b.y, b.w, b.h].iter().all(|v| v.is_finite()) {
-            return Err(InputError::new(
-                "bad_box",
-                f("x"),
-                "box coordinates must be finite",
-            ));
-        }
-        if b.w <= 0.0 || b.h <= 0.0 {
-            return Err(InputError::new(
-                "bad_box",
-                f("w"),
-                "box width and height must be positive",
-            ));
+        if let Some((field, why)) = box_problem(b.x, b.y, b.w, b.h) {
+            return Err(InputError::new("bad_box", f(field), why));
         }
         if let Some(s) = b.score
             && !(0.0..=1.0).contains(&s)

@@ -147,16 +147,21 @@ impl SeparationFeed {
         );
     }
 
-    /// New separator settings with the same framing (labels and streams are kept); checked here,
-    /// so a refusal reaches the caller wherever the driver runs.
-    pub fn set_config(&mut self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
+    /// Whether [`Separation::set_config`] would take `cfg`, without changing anything.
+    pub fn check_config(&self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
         if cfg.frame_geometry() != self.geometry {
             return Err(ConfigError::new(
                 "separate.frame",
                 "the STFT framing cannot change on a running session",
             ));
         }
-        cfg.validate().map_err(sep_err)?;
+        cfg.validate().map_err(sep_err)
+    }
+
+    /// New separator settings with the same framing (labels and streams are kept); checked here,
+    /// so a refusal reaches the caller wherever the driver runs.
+    pub fn set_config(&mut self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
+        self.check_config(cfg)?;
         self.submit(SeparationWork::Config(Box::new(cfg.clone())), &mut |_| {});
         Ok(())
     }

@@ -95,7 +95,7 @@ pub fn device_frame(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::geometry::{Camera, MicArray};
     use crate::scene::format::DoaFile;

@@ -13,7 +13,9 @@ mod wav;
 mod writer;
 
 pub use error::SceneError;
-pub use model::{AudioMeasurementFrame, DetectionFrame, Doa, FaceBox, Scene, Truth, TruthSource};
+pub use model::{
+    AudioMeasurementFrame, DetectionFrame, Doa, FaceBox, Scene, Truth, TruthSource, box_problem,
+};
 pub use reader::{parse_json, read_jsonl};
 pub use wav::{Audio, SampleFormat};
 pub use writer::{JsonlWriter, measurement_to_line, write_json};

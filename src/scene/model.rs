@@ -64,6 +64,20 @@ pub struct FaceBox {
     pub point: Option<Pixel>,
 }
 
+/// What is wrong with a box of left edge `x`, top `y`, width `w` and height `h`, if anything:
+/// the field to blame (`x`, `y`, `w` or `h`) and why. Shared by the scene reader and the live
+/// input, so a box is judged and named the same way whichever way it comes.
+pub fn box_problem(x: f64, y: f64, w: f64, h: f64) -> Option<(&'static str, &'static str)> {
+    let coordinates = [("x", x), ("y", y), ("w", w), ("h", h)];
+    if let Some((field, _)) = coordinates.iter().find(|(_, v)| !v.is_finite()) {
+        return Some((field, "must be a finite number"));
+    }
+    [("w", w), ("h", h)]
+        .into_iter()
+        .find(|&(_, v)| v <= 0.0)
+        .map(|(field, _)| (field, "must be positive"))
+}
+
 impl FaceBox {
     /// The pixel that stands for the source: `point` when given, else the box centre.
     pub fn measurement_point(&self) -> Pixel {
@@ -167,6 +181,18 @@ impl TruthSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bad_box_is_blamed_on_the_field_at_fault() {
+        assert_eq!(box_problem(1.0, 2.0, 3.0, 4.0), None);
+        let field = |x, y, w, h| box_problem(x, y, w, h).map(|p| p.0);
+        assert_eq!(field(1.0, f64::NAN, 3.0, 4.0), Some("y"));
+        assert_eq!(field(1.0, 2.0, 3.0, f64::INFINITY), Some("h"));
+        assert_eq!(field(1.0, 2.0, 3.0, 0.0), Some("h"));
+        assert_eq!(field(1.0, 2.0, -3.0, 0.0), Some("w"));
+        // Finiteness first: a NaN height is not blamed on a negative width.
+        assert_eq!(field(1.0, 2.0, -3.0, f64::NAN), Some("h"));
+    }
 
     #[test]
     fn interpolates_trajectories_and_activity() {

@@ -156,11 +156,8 @@ fn load_detections(path: &Path, layout: &Layout) -> Result<Vec<DetectionFrame>, 
         let mut boxes = Vec::with_capacity(d.boxes.len());
         for (i, b) in d.boxes.iter().enumerate() {
             let f = |name: &str| format!("boxes[{i}].{name}");
-            if !finite(&[b.x, b.y, b.w, b.h]) {
-                return Err(err(f("x"), "box coordinates must be finite".into()));
-            }
-            if b.w <= 0.0 || b.h <= 0.0 {
-                return Err(err(f("w"), "box width and height must be positive".into()));
+            if let Some((field, why)) = super::box_problem(b.x, b.y, b.w, b.h) {
+                return Err(err(f(field), why.into()));
             }
             if let Some(s) = b.score
                 && !(0.0..=1.0).contains(&s)

@@ -102,6 +102,11 @@ pub(super) async fn put_array(
     a.mics = body.mics;
     array_from_file(a).map_err(|e| ApiError::geometry(e, ""))?;
     let layout = layout_from_file(&scene).map_err(|e| ApiError::geometry(e, ""))?;
+    // Only this array's spacing changed, so it is the one a limit names.
+    s.limits().check_layout(&layout).map_err(|e| {
+        let e = crate::geometry::GeometryError::new("mics", e.message);
+        ApiError::geometry(e, "")
+    })?;
     s.recalibrate(layout).await?;
     Ok(Json(s.info()))
 }
@@ -170,10 +175,10 @@ pub(super) async fn get_settings(
 }
 
 /// Changes settings (a JSON merge patch over the settings in force). What can change live:
-/// `camera_wait_s`, `min_box_score`, `max_gap_s`, `cameras`, the tracker's sensor models
-/// (`track.audio_position`, `track.audio_direction`, `track.camera` noise, detection and
+/// `camera_wait_s`, `min_box_score`, `max_gap_s`, `max_lead_s`, `cameras`, the tracker's sensor
+/// models (`track.audio_position`, `track.audio_direction`, `track.camera` noise, detection and
 /// clutter) and the separator except `separate.frame` and `separate.hop`; any other change is
-/// refused with 409 `not_live` naming the field.
+/// refused with 409 `not_live` naming the field. A refused change changes nothing.
 #[utoipa::path(
     patch,
     path = "/v1/sessions/{id}/settings",

@@ -5,6 +5,7 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+use crate::geometry::{GeometryError, Layout};
 use crate::pipeline::ConfigError;
 
 use super::zenoh_transport::ZenohConfig;
@@ -70,6 +71,52 @@ pub struct Limits {
     pub finished_ttl_s: f64,
     /// Seconds a REST call waits for the session's pipeline to apply a change.
     pub control_timeout_s: f64,
+    /// Microphones in one session's arrays, all arrays together.
+    pub max_microphones: usize,
+    /// Sum over each array's microphone pairs of their distances (m), all arrays together: the
+    /// localiser's tables grow with it (one pair's lags span its distance), so it bounds a
+    /// session's memory. A 16-microphone array of 30 cm spans about 25 m.
+    pub max_pair_span_m: f64,
+}
+
+impl Limits {
+    /// Refuses a layout beyond `max_microphones` or `max_pair_span_m`, naming the array that
+    /// passes the limit (`arrays[i].mics`), before anything is sized from it.
+    pub fn check_layout(&self, layout: &Layout) -> Result<(), GeometryError> {
+        let total: usize = layout.arrays.iter().map(|a| a.mics.len()).sum();
+        let mut mics = 0;
+        let mut span = 0.0;
+        for (i, a) in layout.arrays.iter().enumerate() {
+            let field = format!("arrays[{i}].mics");
+            mics += a.mics.len();
+            if mics > self.max_microphones {
+                return Err(GeometryError::new(
+                    field,
+                    format!(
+                        "the session's arrays hold {total} microphones, more than \
+                         limits.max_microphones ({})",
+                        self.max_microphones
+                    ),
+                ));
+            }
+            span += a
+                .pairs()
+                .iter()
+                .map(|&(p, q)| (a.mics[p] - a.mics[q]).norm())
+                .sum::<f64>();
+            if span.is_nan() || span > self.max_pair_span_m {
+                return Err(GeometryError::new(
+                    field,
+                    format!(
+                        "the microphone pairs span {span:.1} m in all, more than \
+                         limits.max_pair_span_m ({} m): the localiser's tables grow with it",
+                        self.max_pair_span_m
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for Limits {
@@ -85,6 +132,8 @@ impl Default for Limits {
             history_steps: 2048,
             finished_ttl_s: 600.0,
             control_timeout_s: 5.0,
+            max_microphones: 64,
+            max_pair_span_m: 250.0,
         }
     }
 }
@@ -156,6 +205,7 @@ impl ServerConfig {
             ("limits.queue_depth", l.queue_depth),
             ("limits.output_buffer", l.output_buffer),
             ("limits.history_steps", l.history_steps),
+            ("limits.max_microphones", l.max_microphones),
         ];
         if let Some((field, _)) = positive.iter().find(|(_, v)| *v == 0) {
             return Err(ConfigError::new(*field, "must be at least 1"));
@@ -171,6 +221,12 @@ impl ServerConfig {
             return Err(ConfigError::new(
                 "limits.finished_ttl_s",
                 "must be a finite number of seconds >= 0",
+            ));
+        }
+        if !(l.max_pair_span_m > 0.0 && l.max_pair_span_m.is_finite()) {
+            return Err(ConfigError::new(
+                "limits.max_pair_span_m",
+                "must be a finite number of metres > 0",
             ));
         }
         if !(l.control_timeout_s > 0.0 && l.control_timeout_s <= 600.0) {
@@ -228,5 +284,41 @@ mod tests {
         assert_eq!(e.field, "limits.max_message_bytes");
         let e = ServerConfig::parse("[execution]\nseparation_nice = 20\n").unwrap_err();
         assert_eq!(e.field, "execution.separation_nice");
+    }
+
+    #[test]
+    fn a_layout_is_checked_against_the_microphone_limits() {
+        use crate::geometry::{MicArray, Vec3};
+        // Measurement-only arrays: the limits count microphones whether or not they carry audio.
+        let array = |id: &str, mics: Vec<Vec3>| MicArray::new(id, mics, Vec::new()).unwrap();
+        let line = |n: usize, spacing: f64| -> Vec<Vec3> {
+            (0..n)
+                .map(|i| Vec3::new(spacing * i as f64, 0.0, 1.0))
+                .collect()
+        };
+        let layout = |arrays: Vec<MicArray>| Layout::new(16_000, 343.0, arrays, vec![], None);
+        let limits = Limits {
+            max_microphones: 8,
+            max_pair_span_m: 10.0,
+            ..Limits::default()
+        };
+        // Two 4-microphone lines of 10 cm spacing: 8 microphones, pairs spanning 2 m in all.
+        let ok = layout(vec![array("a", line(4, 0.1)), array("b", line(4, 0.1))]).unwrap();
+        assert!(limits.check_layout(&ok).is_ok());
+        // A ninth microphone: the array that passes the count is named.
+        let many = layout(vec![array("a", line(4, 0.1)), array("b", line(5, 0.1))]).unwrap();
+        let e = limits.check_layout(&many).unwrap_err();
+        assert_eq!(e.field, "arrays[1].mics");
+        assert!(e.message.contains("9 microphones"), "{e}");
+        // Pairs spanning 10.5 m, and microphones so far apart that the distances overflow.
+        let wide = layout(vec![array("a", line(2, 0.5)), array("b", line(2, 10.0))]).unwrap();
+        let e = limits.check_layout(&wide).unwrap_err();
+        assert_eq!(e.field, "arrays[1].mics");
+        assert!(e.message.contains("limits.max_pair_span_m"), "{e}");
+        let huge = vec![Vec3::new(-1e308, 0.0, 0.0), Vec3::new(1e308, 0.0, 0.0)];
+        let e = limits
+            .check_layout(&layout(vec![array("a", huge)]).unwrap())
+            .unwrap_err();
+        assert_eq!(e.field, "arrays[0].mics");
     }
 }

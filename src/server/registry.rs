@@ -117,6 +117,10 @@ impl Registry {
             req.region,
         );
         let layout = layout_from_file(&scene).map_err(|e| ApiError::geometry(e, ""))?;
+        self.config
+            .limits
+            .check_layout(&layout)
+            .map_err(|e| ApiError::geometry(e, ""))?;
         let settings = req.settings.unwrap_or_default();
         let id = auth::new_session_id();
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.

@@ -8,6 +8,8 @@
 //! what the offline run produces.
 
 mod step;
+#[cfg(test)]
+mod tests;
 
 use std::collections::BTreeSet;
 
@@ -240,6 +242,33 @@ impl Pipeline {
         })
     }
 
+    /// The session's present (s): the end of the audio received or, in a session without
+    /// audio, its sensors' newest time (at least the start of the step the tracker is at).
+    fn present(&self) -> f64 {
+        match &self.audio {
+            Some(a) => self.clock.time_of(a.end()),
+            None => self
+                .cameras
+                .iter()
+                .map(SensorQueue::last_time)
+                .chain(self.devices.iter().map(SensorQueue::last_time))
+                .fold(self.clock.step_bounds(self.next_step).0, f64::max),
+        }
+    }
+
+    /// The refusal of a sensor frame at time `t` further than `max_lead_s` ahead of the
+    /// session's present, if it is.
+    fn too_early(&self, t: f64) -> Option<InputError> {
+        let present = self.present();
+        (t > present + self.cfg.max_lead_s).then(|| {
+            let msg = format!(
+                "frame at {t} s is more than max_lead_s ({} s) ahead of the session's present ({present:.3} s)",
+                self.cfg.max_lead_s
+            );
+            InputError::new("too_early", "t", msg)
+        })
+    }
+
     fn reject<T>(&mut self, e: InputError) -> Result<T, InputError> {
         self.stats.rejected += 1;
         Err(e)
@@ -339,6 +368,9 @@ impl Pipeline {
         if let Err(e) = input::check_detections(&self.layout, &frame, last) {
             return self.reject(e);
         }
+        if let Some(e) = self.too_early(frame.t) {
+            return self.reject(e);
+        }
         if let Some(e) = self.late("camera frame", frame.t) {
             self.stats.late_frames += 1;
             return self.reject(e);
@@ -374,6 +406,9 @@ impl Pipeline {
         if let Err(e) = input::check_device_measurements(&self.layout, &frame, last) {
             return self.reject(e);
         }
+        if let Some(e) = self.too_early(frame.t) {
+            return self.reject(e);
+        }
         if let Some(e) = self.late("measurement frame", frame.t) {
             return self.reject(e);
         }
@@ -394,11 +429,11 @@ impl Pipeline {
                 "recalibration may move microphones and cameras but not add or remove them",
             ));
         }
-        if let Some(l) = self.localizer.as_mut() {
-            l.set_layout(&layout).map_err(|e| e.within("localize"))?;
-        }
-        if let Some(s) = self.separation.as_mut() {
-            s.set_layout(&layout);
+        // Every check before any change, so a refused layout leaves the session as it was: the
+        // localiser's check is pure, the tracker's change all or nothing, and what follows
+        // cannot fail.
+        if let Some(l) = &self.localizer {
+            l.check_layout(&layout).map_err(|e| e.within("localize"))?;
         }
         if let TrackSource::Tracker { tracker, .. } = &mut self.source {
             let models = sensors_from_layout(&layout, &self.cfg.track)
@@ -406,6 +441,12 @@ impl Pipeline {
                 .map(|(_, m)| m)
                 .collect();
             tracker.set_sensors(models).map_err(|e| e.within("track"))?;
+        }
+        if let Some(l) = self.localizer.as_mut() {
+            l.set_layout(&layout).map_err(|e| e.within("localize"))?;
+        }
+        if let Some(s) = self.separation.as_mut() {
+            s.set_layout(&layout);
         }
         self.layout = layout;
         Ok(())
@@ -434,6 +475,12 @@ impl Pipeline {
                 "cannot change on a running session (it shapes a stage when the session is created)",
             ));
         }
+        // As in `set_layout`: the separator's check first, then the tracker's all-or-nothing
+        // change, then the separator's, which cannot fail after its check.
+        let separate = changed.iter().any(|f| f.starts_with("separate."));
+        if separate && let Some(sep) = &self.separation {
+            sep.check_config(&cfg.separate)?;
+        }
         if changed.iter().any(|f| f.starts_with("track.")) {
             cfg.track.validate().map_err(|e| e.within("track"))?;
             if let TrackSource::Tracker { tracker, .. } = &mut self.source {
@@ -444,9 +491,7 @@ impl Pipeline {
                 tracker.set_sensors(models).map_err(|e| e.within("track"))?;
             }
         }
-        if changed.iter().any(|f| f.starts_with("separate."))
-            && let Some(sep) = self.separation.as_mut()
-        {
+        if separate && let Some(sep) = self.separation.as_mut() {
             sep.set_config(&cfg.separate)?;
         }
         self.cfg = cfg;
@@ -468,6 +513,7 @@ pub const LIVE_SETTINGS: &[&str] = &[
     "camera_wait_s",
     "min_box_score",
     "max_gap_s",
+    "max_lead_s",
     "cameras",
     "track.audio_position",
     "track.audio_direction",

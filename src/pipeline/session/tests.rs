@@ -1,0 +1,111 @@
+//! A session's clock against frames from a wrong clock.
+
+use super::*;
+use crate::geometry::MicArray;
+use crate::scene::{DetectionFrame, FaceBox};
+
+/// The protocol tests' four-microphone array and camera; without audio, the array only
+/// measures (no channels).
+fn layout(audio: bool) -> Layout {
+    let l = crate::protocol::inbound::tests::layout();
+    if audio {
+        return l;
+    }
+    let array = MicArray::new("a0", l.arrays[0].mics.clone(), Vec::new()).unwrap();
+    Layout::new(16_000, 343.0, vec![array], l.cameras.clone(), None).unwrap()
+}
+
+fn frame(t: f64) -> DetectionFrame {
+    DetectionFrame {
+        t,
+        camera: 0,
+        boxes: vec![FaceBox {
+            x: 300.0,
+            y: 200.0,
+            w: 40.0,
+            h: 50.0,
+            score: None,
+            point: None,
+        }],
+    }
+}
+
+#[test]
+fn a_frame_from_far_ahead_is_refused_and_the_camera_goes_on() {
+    // Without audio the cameras are the clock: a frame a billion seconds ahead would have the
+    // session step through 30 years of empty time, and lock the camera out after it.
+    let mut p = Pipeline::new(layout(false), PipelineConfig::default(), 1).unwrap();
+    for i in 0..10 {
+        p.push_detections(frame(0.125 * f64::from(i))).unwrap();
+    }
+    let steps = p.stats().steps;
+    let e = p.push_detections(frame(1e9)).unwrap_err();
+    assert_eq!((e.code, e.field.as_str()), ("too_early", "t"));
+    assert!(e.message.contains("max_lead_s"), "{e}");
+    assert_eq!(p.stats().steps, steps, "no step ran for the refused frame");
+    // The camera's next frame in time is taken, and frames walk the clock on as before.
+    p.push_detections(frame(1.25)).unwrap();
+    p.push_detections(frame(1.25 + 9.0)).unwrap();
+    assert!(p.stats().steps > steps);
+    assert_eq!(
+        p.push_detections(frame(40.0)).unwrap_err().code,
+        "too_early"
+    );
+}
+
+#[test]
+fn with_audio_the_lead_is_measured_from_the_audio_received() {
+    let cfg = PipelineConfig {
+        max_lead_s: 2.0,
+        ..PipelineConfig::default()
+    };
+    let mut p = Pipeline::new(layout(true), cfg, 1).unwrap();
+    p.push_audio(0, 4, &vec![0.0; 4 * 16_000]).unwrap();
+    // One second of audio received: frames up to 3 s are held for it, later ones refused.
+    p.push_detections(frame(2.9)).unwrap();
+    let e = p.push_detections(frame(3.1)).unwrap_err();
+    assert_eq!((e.code, e.field.as_str()), ("too_early", "t"));
+    // Frames accepted ahead do not move the present: audio does.
+    let e = p.push_detections(frame(4.5)).unwrap_err();
+    assert_eq!(e.code, "too_early");
+    p.push_audio(16_000, 4, &vec![0.0; 4 * 48_000]).unwrap();
+    p.push_detections(frame(4.5)).unwrap();
+}
+
+/// The tracks of two seconds of one face and silence, after `change` (refused or not).
+fn tracks_after(change: Option<(PipelineConfig, bool)>) -> String {
+    let mut p = Pipeline::new(layout(true), PipelineConfig::default(), 1).unwrap();
+    if let Some((cfg, accepted)) = change {
+        let r = p.update_config(cfg);
+        assert_eq!(r.is_ok(), accepted, "{r:?}");
+        if let Err(e) = r {
+            assert_eq!(e.field, "separate.null_loading");
+        }
+    }
+    let mut events = Vec::new();
+    for i in 0..16u32 {
+        events.extend(p.push_detections(frame(0.125 * f64::from(i))).unwrap());
+        let first = u64::from(i) * 2000;
+        events.extend(p.push_audio(first, 4, &vec![0.0; 4 * 2000]).unwrap());
+    }
+    events.extend(p.finish());
+    let tracks: Vec<_> = events
+        .iter()
+        .filter(|e| matches!(e, PipelineEvent::Tracks { .. }))
+        .collect();
+    assert!(!tracks.is_empty());
+    format!("{tracks:?}")
+}
+
+#[test]
+fn a_refused_settings_change_changes_nothing() {
+    // The camera's noise alone changes the tracks; refused with an invalid separator setting,
+    // it must not reach the tracker either.
+    let mut noisier = PipelineConfig::default();
+    noisier.track.camera.noise_std_px = 77.0;
+    let untouched = tracks_after(None);
+    assert_ne!(tracks_after(Some((noisier.clone(), true))), untouched);
+    let mut refused = noisier;
+    refused.separate.null_loading = -1.0;
+    assert_eq!(tracks_after(Some((refused, false))), untouched);
+}
