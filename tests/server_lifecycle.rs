@@ -186,6 +186,9 @@ async fn recalibrate_live(api: &SessionApi, sc: &avsep::scene::Scene) {
         .await;
     assert_eq!(r.status, 200, "{}", r.text());
 
+    let projection = cam.projection.expect("the camera's projection");
+    concurrent_recalibrations_both_apply(api, (&a0.id, &moved), &cam.id, &projection).await;
+
     let patch = serde_json::json!({
         "camera_wait_s": 0.2,
         "track": {"camera": {"p_detect": 0.8}},
@@ -198,6 +201,46 @@ async fn recalibrate_live(api: &SessionApi, sc: &avsep::scene::Scene) {
     assert_eq!(now.separate.post_filter.gain_floor, 0.2);
     let r = api.call("GET", "/settings", None).await;
     assert_eq!(r.json::<PipelineConfig>().unwrap(), now);
+}
+
+/// The array moved by another millimetre and the camera by one, at once: each change waits
+/// for the other instead of both starting from the same layout, so neither is lost.
+async fn concurrent_recalibrations_both_apply(
+    api: &SessionApi,
+    (array, mics): (&str, &[[f64; 3]]),
+    camera: &str,
+    projection: &[[f64; 4]; 3],
+) {
+    let moved: Vec<[f64; 3]> = mics.iter().map(|m| [m[0] + 0.001, m[1], m[2]]).collect();
+    let mut shifted = *projection;
+    shifted[0][3] += 0.001 * shifted[2][3].abs().max(1.0);
+    let (array_path, camera_path) = (format!("/arrays/{array}"), format!("/cameras/{camera}"));
+    let a = api.call(
+        "PUT",
+        &array_path,
+        Some(serde_json::json!({ "mics": moved })),
+    );
+    let c = api.call(
+        "PUT",
+        &camera_path,
+        Some(serde_json::json!({ "projection": shifted })),
+    );
+    let (a, c) = tokio::join!(a, c);
+    assert_eq!(
+        (a.status, c.status),
+        (200, 200),
+        "{} {}",
+        a.text(),
+        c.text()
+    );
+    let applied: SessionInfo = c.json().unwrap();
+    let now: SessionInfo = api.call("GET", "", None).await.json().unwrap();
+    assert_eq!(now.arrays[0].mics, moved, "the array's change was kept");
+    assert_eq!(
+        now.cameras[0].projection, applied.cameras[0].projection,
+        "the camera's change was kept"
+    );
+    assert_ne!(now.cameras[0].projection.as_ref(), Some(projection));
 }
 
 /// The track history equals what the stream reported; the session's metrics and the

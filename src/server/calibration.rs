@@ -71,6 +71,8 @@ pub(super) async fn put_array(
     let s = session_access(&app, &id, &headers, query.as_deref())?;
     let JsonBody(body) = JsonBody::<ArrayCalibration>::from_request_checked(req, &app).await?;
     running(&s)?;
+    // Held until the new layout is applied: a concurrent change waits, then builds on it.
+    let _change = s.begin_change().await;
     let mut scene = scene_of(&s);
     let known = scene.arrays.iter().map(|a| a.id.clone()).collect();
     let a = scene
@@ -137,6 +139,8 @@ pub(super) async fn put_camera(
     let s = session_access(&app, &id, &headers, query.as_deref())?;
     let JsonBody(body) = JsonBody::<CameraCalibration>::from_request_checked(req, &app).await?;
     running(&s)?;
+    // Held until the new layout is applied: a concurrent change waits, then builds on it.
+    let _change = s.begin_change().await;
     let mut scene = scene_of(&s);
     let known = scene.cameras.iter().map(|c| c.id.clone()).collect();
     let c = scene
@@ -210,6 +214,8 @@ pub(super) async fn patch_settings(
             "the body must be a JSON object (a merge patch over the settings)",
         ));
     }
+    // Held until the merged settings are applied: a concurrent patch waits, then merges on them.
+    let _change = s.begin_change().await;
     let mut merged = serde_json::to_value(s.settings())
         .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, "internal", e.to_string()))?;
     merge_patch(&mut merged, &patch);

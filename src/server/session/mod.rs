@@ -111,6 +111,10 @@ pub struct Session {
     latest_detections: Mutex<BTreeMap<usize, DetectionFrame>>,
     /// `max_gap_s` of the settings in force, in samples (read for every audio frame).
     max_gap_samples: AtomicU64,
+    /// Held by a REST change (calibration, settings) from reading what is in force to its
+    /// being applied, so two concurrent changes cannot both start from the same state and the
+    /// later silently undo the earlier.
+    changes: tokio::sync::Mutex<()>,
     clients: AtomicUsize,
     next_client: AtomicU64,
     server: Arc<ServerMetrics>,
@@ -172,6 +176,7 @@ impl SessionHandle {
         let max_gap = gap_samples(&spec.settings, spec.layout.sample_rate);
         let session = Arc::new(Session {
             max_gap_samples: AtomicU64::new(max_gap),
+            changes: tokio::sync::Mutex::new(()),
             created_unix_s: unix_now(),
             sample_rate: spec.layout.sample_rate,
             channels: spec.layout.channel_count(),
@@ -485,6 +490,12 @@ impl Session {
     /// its next step, keeping its tracks.
     pub async fn recalibrate(&self, layout: Layout) -> Result<(), ControlError> {
         self.control(|tx| Work::Recalibrate(layout, tx)).await
+    }
+
+    /// Waits for the session's other REST changes to finish; hold the guard from reading the
+    /// calibration or settings in force until the change built on them is applied.
+    pub async fn begin_change(&self) -> tokio::sync::MutexGuard<'_, ()> {
+        self.changes.lock().await
     }
 
     /// Changes settings that can change live (others are refused, naming the field).
