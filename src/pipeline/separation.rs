@@ -147,7 +147,7 @@ impl SeparationFeed {
         );
     }
 
-    /// Whether [`Separation::set_config`] would take `cfg`, without changing anything.
+    /// Whether [`SeparationFeed::set_config`] would take `cfg`, without changing anything.
     pub fn check_config(&self, cfg: &SeparatorConfig) -> Result<(), ConfigError> {
         if cfg.frame_geometry() != self.geometry {
             return Err(ConfigError::new(

@@ -12,7 +12,14 @@ fn layout(audio: bool) -> Layout {
         return l;
     }
     let array = MicArray::new("a0", l.arrays[0].mics.clone(), Vec::new()).unwrap();
-    Layout::new(16_000, 343.0, vec![array], l.cameras.clone(), None).unwrap()
+    Layout::new(
+        l.sample_rate,
+        l.speed_of_sound,
+        vec![array],
+        l.cameras.clone(),
+        None,
+    )
+    .unwrap()
 }
 
 fn frame(t: f64) -> DetectionFrame {
