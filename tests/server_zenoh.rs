@@ -513,3 +513,67 @@ async fn rest_session_checks_tokens(
     );
     heard
 }
+
+/// A stranger without the token floods a session's input: every refusal is counted, but only
+/// `limits.zenoh_refusals_per_s` of them a second are published, the device's own refusal
+/// still gets through, and the next refusal published says how many were held back.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_flood_without_credentials_is_published_at_a_bounded_rate() {
+    let mut cfg = ServerConfig::default();
+    cfg.limits.zenoh_refusals_per_s = 4.0;
+    let server = ZenohServer::start(cfg).await;
+    let mut edge = Edge::connect(&server.endpoint).await;
+    let sc = scene("uca8", 1.0, 1, 5);
+    let s = edge.create(&sc, 7, None).await;
+    edge.wait_for_input(&s.id).await;
+
+    let audio_key = input_audio(&s.id);
+    let started = Instant::now();
+    for _ in 0..300 {
+        edge.put(&audio_key, b"AVSA".to_vec(), None);
+    }
+    let own = r#"{"type":"detections","t":0.1,"camera":"cam0","boxes":[{"x":"ten"}]}"#;
+    edge.put(&input_detections(&s.id, "cam0"), own.into(), Some(&s.token));
+    let refused = || -> u64 {
+        let m = server.http.registry.get(&s.id).unwrap().metrics();
+        m.refused.values().sum()
+    };
+    let deadline = Instant::now() + WAIT;
+    while refused() < 301 {
+        assert!(Instant::now() < deadline, "{} refusals counted", refused());
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    let mut heard = Heard::default();
+    edge.drain(&s.id, &mut heard, Duration::from_millis(500))
+        .await;
+    let published = heard
+        .errors
+        .iter()
+        .filter(|e| e.code == "unauthorized")
+        .count();
+    assert!(
+        published >= 4 && published as f64 <= 5.0 + 4.0 * elapsed,
+        "{published} published in {elapsed:.2} s"
+    );
+    assert!(
+        heard
+            .errors
+            .iter()
+            .any(|e| e.code == "bad_message" && e.field.as_deref() == Some("boxes[0].x")),
+        "{:?}",
+        heard.errors
+    );
+
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    heard.errors.clear();
+    edge.put(&audio_key, b"AVSA".to_vec(), None);
+    edge.errors(&s.id, &mut heard, 1).await;
+    assert_eq!(heard.errors[0].code, "unauthorized");
+    assert!(
+        heard.errors[0].message.contains("were not published"),
+        "{:?}",
+        heard.errors[0]
+    );
+    server.stop().await;
+}

@@ -4,6 +4,7 @@
 pub mod audio_frame;
 pub mod inbound;
 pub mod messages;
+pub mod parse;
 pub mod rest;
 pub mod schema;
 pub mod zenoh_keys;

@@ -77,6 +77,15 @@ pub struct Limits {
     /// localiser's tables grow with it (one pair's lags span its distance), so it bounds a
     /// session's memory. A 16-microphone array of 30 cm spans about 25 m.
     pub max_pair_span_m: f64,
+    /// Refusals of Zenoh input a session publishes on `out/events` per second (as many at
+    /// once), counted apart for samples without valid credentials and for the rest. Those over
+    /// the rate are still counted in the metrics; the next one published says how many were
+    /// held back. Without it anyone on the network could flood the session's outputs.
+    pub zenoh_refusals_per_s: f64,
+    /// Seconds a running session may go without accepted input and without a connected stream
+    /// client before it is ended (`idle`); 0 never ends one. One that never received input
+    /// is removed at once; one that did finishes and stays readable for `finished_ttl_s`.
+    pub idle_timeout_s: f64,
 }
 
 impl Limits {
@@ -134,6 +143,8 @@ impl Default for Limits {
             control_timeout_s: 5.0,
             max_microphones: 64,
             max_pair_span_m: 250.0,
+            zenoh_refusals_per_s: 10.0,
+            idle_timeout_s: 900.0,
         }
     }
 }
@@ -222,6 +233,14 @@ impl ServerConfig {
                 "limits.finished_ttl_s",
                 "must be a finite number of seconds >= 0",
             ));
+        }
+        for (field, v) in [
+            ("limits.zenoh_refusals_per_s", l.zenoh_refusals_per_s),
+            ("limits.idle_timeout_s", l.idle_timeout_s),
+        ] {
+            if !(v >= 0.0 && v.is_finite()) {
+                return Err(ConfigError::new(field, "must be a finite number >= 0"));
+            }
         }
         if !(l.max_pair_span_m > 0.0 && l.max_pair_span_m.is_finite()) {
             return Err(ConfigError::new(

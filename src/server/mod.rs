@@ -18,6 +18,7 @@ pub mod engine;
 pub mod error;
 pub mod metrics;
 pub mod openapi;
+pub mod rate_limit;
 pub mod registry;
 mod routes;
 pub mod session;

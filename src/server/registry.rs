@@ -220,17 +220,27 @@ impl Registry {
         Some(s)
     }
 
-    /// Removes sessions that ended more than `limits.finished_ttl_s` ago.
+    /// Removes sessions that ended more than `limits.finished_ttl_s` ago, and ends the running
+    /// ones unused for `limits.idle_timeout_s` (removing at once those that never got input).
     pub fn reap(&self) {
-        let ttl = Duration::from_secs_f64(self.config.limits.finished_ttl_s);
-        let expired: Vec<String> = self
-            .list()
-            .iter()
-            .filter(|s| s.ended().is_some_and(|t| t.elapsed() >= ttl))
-            .map(|s| s.id().to_string())
-            .collect();
-        for id in expired {
-            self.remove(&id, "expired");
+        let limits = &self.config.limits;
+        let ttl = Duration::from_secs_f64(limits.finished_ttl_s);
+        let idle =
+            (limits.idle_timeout_s > 0.0).then(|| Duration::from_secs_f64(limits.idle_timeout_s));
+        for s in self.list() {
+            if s.ended().is_some_and(|t| t.elapsed() >= ttl) {
+                self.remove(s.id(), "expired");
+            } else if let Some(idle) = idle
+                && s.state() == SessionState::Running
+                && s.unused_for().is_some_and(|d| d >= idle)
+            {
+                tracing::info!(session = %s.id(), "session idle for limits.idle_timeout_s");
+                if s.ever_fed() {
+                    s.finish("idle");
+                } else {
+                    self.remove(s.id(), "idle");
+                }
+            }
         }
     }
 

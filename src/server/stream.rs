@@ -257,23 +257,9 @@ fn on_text(
 }
 
 /// Parses a client message; malformed JSON is `bad_json`, a well-formed message that does not
-/// fit the protocol is `bad_message` with the path of the offending field.
+/// fit the protocol is `bad_message` naming the offending field ([`ClientMessage::parse`]).
 pub fn parse_message(text: &str) -> Result<ClientMessage, ErrorBody> {
-    let de = &mut serde_json::Deserializer::from_str(text);
-    serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        let inner = e.into_inner();
-        let (code, field) = if inner.is_data() {
-            ("bad_message", (path != ".").then_some(path))
-        } else {
-            ("bad_json", None)
-        };
-        ErrorBody {
-            code: code.into(),
-            message: inner.to_string(),
-            field,
-        }
-    })
+    ClientMessage::parse(text)
 }
 
 /// The wire message of an output for this client, if its selection wants it.

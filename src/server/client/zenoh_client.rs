@@ -226,7 +226,7 @@ impl ZenohStream {
                 .await
                 .map_err(cerr),
             FeedMessage::Json(text) => {
-                let key = match serde_json::from_str::<ClientMessage>(text) {
+                let key = match ClientMessage::parse(text) {
                     Ok(ClientMessage::Detections { camera, .. }) => {
                         input_detections(&self.session, &camera)
                     }
@@ -238,7 +238,9 @@ impl ZenohStream {
                             "{m:?} has no Zenoh input key (only detections and audio_measurements)"
                         )));
                     }
-                    Err(e) => return Err(ClientError(format!("a feed message: {e}"))),
+                    Err(e) => {
+                        return Err(ClientError(format!("a feed message: {}", e.message)));
+                    }
                 };
                 self.put(&key, text.clone().into_bytes()).await
             }

@@ -25,6 +25,7 @@ use super::engine::Engine;
 use super::metrics::{ServerMetrics, SessionCounters};
 use super::worker;
 
+mod idle;
 mod interest;
 mod messages;
 mod reads;
@@ -117,6 +118,7 @@ pub struct Session {
     changes: tokio::sync::Mutex<()>,
     clients: AtomicUsize,
     next_client: AtomicU64,
+    last_use: idle::LastUse,
     server: Arc<ServerMetrics>,
     /// The session's counters.
     pub counters: SessionCounters,
@@ -150,6 +152,7 @@ impl ClientGuard {
 impl Drop for ClientGuard {
     fn drop(&mut self) {
         self.session.clients.fetch_sub(1, Ordering::AcqRel);
+        self.session.last_use.touch(false);
     }
 }
 
@@ -201,6 +204,7 @@ impl SessionHandle {
             latest_detections: Mutex::new(BTreeMap::new()),
             clients: AtomicUsize::new(0),
             next_client: AtomicU64::new(1),
+            last_use: idle::LastUse::new(),
             counters: SessionCounters::new(server.clone()),
             server,
             id: spec.id,
@@ -370,7 +374,10 @@ impl Session {
             latest.insert(f.camera, f);
         }
         match &result {
-            Ok(()) => self.counters.accepted(kind),
+            Ok(()) => {
+                self.counters.accepted(kind);
+                self.last_use.touch(true);
+            }
             Err(e) => self.counters.refused(e.code),
         }
         result

@@ -1,8 +1,12 @@
 //! Inbound samples of one session (`avsep/<session>/in/**`): checked for the session's token,
 //! decoded with the WebSocket's decoders, and handed to the session's bounded queue with
 //! [`SessionHandle::submit`] (which never blocks: a full queue refuses with `queue_full`). Every
-//! refusal is counted and published on `out/events` as an error naming the field; the session
-//! goes on.
+//! refusal is counted and published on `out/events` as an error naming the field, at most
+//! `limits.zenoh_refusals_per_s` a second (apart for samples without credentials, so a
+//! stranger's flood cannot hide a device's own refusals); the session goes on.
+
+use std::sync::Mutex;
+use std::time::Instant;
 
 use zenoh::bytes::ZBytes;
 use zenoh::sample::Sample;
@@ -11,6 +15,7 @@ use crate::protocol::inbound::{detection_frame, device_frame};
 use crate::protocol::zenoh_keys::InputKey;
 use crate::protocol::{AudioFrame, ClientMessage, ErrorBody};
 use crate::server::auth;
+use crate::server::rate_limit::TokenBucket;
 use crate::server::session::{Input, Output, Rejection, SessionHandle};
 use crate::server::stream::parse_message;
 
@@ -21,16 +26,38 @@ pub(super) fn handler(
     session: SessionHandle,
     admin_key: Option<String>,
 ) -> impl Fn(Sample) + Send + Sync + 'static {
+    let rate = session.limits().zenoh_refusals_per_s;
+    let published = Mutex::new([TokenBucket::new(rate, rate), TokenBucket::new(rate, rate)]);
     move |sample| {
-        if let Err(error) = on_sample(&session, admin_key.as_deref(), &sample) {
-            tracing::debug!(session = %session.id(), code = %error.code, "zenoh input refused");
-            session.broadcast(Output::Error {
-                to: Some(ZENOH_CLIENT),
-                error,
-            });
+        let Err(mut error) = on_sample(&session, admin_key.as_deref(), &sample) else {
+            return;
+        };
+        tracing::debug!(session = %session.id(), code = %error.code, "zenoh input refused");
+        let bucket = usize::from(!UNAUTHENTICATED.contains(&error.code.as_str()));
+        let Some(held) = published
+            .lock()
+            .ok()
+            .and_then(|mut b| b[bucket].admit(Instant::now()))
+        else {
+            return;
+        };
+        if held > 0 {
+            error.message = format!(
+                "{} ({held} refusals before this one were not published: \
+                 limits.zenoh_refusals_per_s)",
+                error.message
+            );
         }
+        session.broadcast(Output::Error {
+            to: Some(ZENOH_CLIENT),
+            error,
+        });
     }
 }
+
+/// Refusals of samples that did not show valid credentials (or any input key), published at a
+/// rate of their own.
+const UNAUTHENTICATED: [&str; 3] = ["unknown_key", "unauthorized", "forbidden"];
 
 /// An error the transport finds itself (the session's `submit` counts its own refusals).
 fn refused(s: &SessionHandle, code: &'static str, field: &str, message: String) -> ErrorBody {
