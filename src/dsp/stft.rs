@@ -1,7 +1,7 @@
 //! Short-time Fourier transform with a perfect-reconstruction inverse (realfft).
 //!
-//! Sign convention (rustfft/realfft forward): X[k] = sum_n x[n] e^{-j 2 pi k n / N}, so a delay of
-//! tau seconds multiplies bin k by e^{-j omega_k tau}.
+//! Sign convention (rustfft/realfft forward): `X[k] = sum_n x[n] e^{-j 2 pi k n / N}`, so a
+//! delay of tau seconds multiplies bin k by `e^{-j omega_k tau}`.
 //!
 //! Streaming framing: frame m covers input samples [m*hop - P, m*hop - P + frame) with the prepad
 //! P = frame - hop (zeros before the first sample), so a frame is ready as soon as `hop` new samples
