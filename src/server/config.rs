@@ -86,6 +86,10 @@ pub struct Limits {
     /// client before it is ended (`idle`); 0 never ends one. One that never received input
     /// is removed at once; one that did finishes and stays readable for `finished_ttl_s`.
     pub idle_timeout_s: f64,
+    /// Sessions the server creates per minute on average (as many at once): building a
+    /// session's pipeline costs CPU, so a loop of creations cannot starve the running ones.
+    /// More are refused with 429 `rate_limited`.
+    pub session_creations_per_min: f64,
 }
 
 impl Limits {
@@ -145,6 +149,7 @@ impl Default for Limits {
             max_pair_span_m: 250.0,
             zenoh_refusals_per_s: 10.0,
             idle_timeout_s: 900.0,
+            session_creations_per_min: 60.0,
         }
     }
 }
@@ -241,6 +246,12 @@ impl ServerConfig {
             if !(v >= 0.0 && v.is_finite()) {
                 return Err(ConfigError::new(field, "must be a finite number >= 0"));
             }
+        }
+        if !(l.session_creations_per_min > 0.0 && l.session_creations_per_min.is_finite()) {
+            return Err(ConfigError::new(
+                "limits.session_creations_per_min",
+                "must be a finite number > 0",
+            ));
         }
         if !(l.max_pair_span_m > 0.0 && l.max_pair_span_m.is_finite()) {
             return Err(ConfigError::new(

@@ -1,9 +1,10 @@
 //! The sessions a server holds: creation from a REST body (geometry and settings checked, the
-//! pipeline built), lookup, removal, expiry of ended sessions, and draining at shutdown.
+//! pipeline built, at a bounded rate), lookup, removal, expiry of ended and idle sessions, and
+//! draining at shutdown.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock, RwLock};
+use std::sync::{Arc, Mutex, OnceLock, RwLock};
 use std::time::{Duration, Instant};
 
 use axum::http::StatusCode;
@@ -18,6 +19,7 @@ use super::demo::DemoAccess;
 use super::engine::Engine;
 use super::error::ApiError;
 use super::metrics::{ServerMetrics, Snapshot};
+use super::rate_limit::TokenBucket;
 use super::session::{SessionHandle, SessionSpec};
 
 /// Called with every session the registry starts holding (see [`Registry::on_insert`]).
@@ -30,6 +32,8 @@ pub struct Registry {
     config: Arc<ServerConfig>,
     metrics: Arc<ServerMetrics>,
     draining: AtomicBool,
+    /// Session creations admitted at `limits.session_creations_per_min`.
+    creations: Mutex<TokenBucket>,
     /// The built-in demo session, when one was started (`avsep serve --demo`).
     demo: OnceLock<DemoAccess>,
 }
@@ -37,7 +41,9 @@ pub struct Registry {
 impl Registry {
     /// An empty registry.
     pub fn new(config: Arc<ServerConfig>, metrics: Arc<ServerMetrics>) -> Self {
+        let per_min = config.limits.session_creations_per_min;
         Self {
+            creations: Mutex::new(TokenBucket::new(per_min / 60.0, per_min)),
             sessions: RwLock::new(BTreeMap::new()),
             hooks: RwLock::new(Vec::new()),
             config,
@@ -104,11 +110,34 @@ impl Registry {
         Ok(())
     }
 
+    /// Counts a creation against `limits.session_creations_per_min`, refusing it (429) past
+    /// the rate.
+    fn admit_creation(&self) -> Result<(), ApiError> {
+        let admitted = self
+            .creations
+            .lock()
+            .ok()
+            .and_then(|mut b| b.admit(Instant::now()));
+        if admitted.is_none() {
+            return Err(ApiError::new(
+                StatusCode::TOO_MANY_REQUESTS,
+                "rate_limited",
+                format!(
+                    "more than limits.session_creations_per_min ({}) sessions asked for in the \
+                     last minute; try again shortly",
+                    self.config.limits.session_creations_per_min
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Creates a session from a REST body: checks the geometry and settings (errors name the
     /// field), builds the pipeline and starts its worker. Returns the session and its token.
     /// Building the pipeline takes a while (search grids, filters): call from a blocking task.
     pub fn create(&self, req: CreateSession) -> Result<(SessionHandle, String), ApiError> {
         self.check_capacity()?;
+        self.admit_creation()?;
         let scene = geometry_file(
             req.sample_rate,
             req.speed_of_sound,

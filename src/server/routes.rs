@@ -77,6 +77,7 @@ pub(super) fn session_access(
         (status = 403, description = "Wrong admin key", body = crate::protocol::rest::ErrorResponse),
         (status = 413, description = "Body larger than limits.max_body_bytes", body = crate::protocol::rest::ErrorResponse),
         (status = 422, description = "Invalid geometry or settings; `field` names it", body = crate::protocol::rest::ErrorResponse),
+        (status = 429, description = "More creations than limits.session_creations_per_min (`rate_limited`)", body = crate::protocol::rest::ErrorResponse),
         (status = 503, description = "At limits.max_sessions, or shutting down", body = crate::protocol::rest::ErrorResponse),
     ),
     security((), ("bearer" = []))

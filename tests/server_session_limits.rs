@@ -1,6 +1,7 @@
-//! Sessions nobody uses end by themselves (`limits.idle_timeout_s`): one never fed is removed,
-//! one fed and left finishes (its results stay readable), and one with a client connected runs
-//! on however quiet it is.
+//! The bounds on sessions themselves: sessions nobody uses end by themselves
+//! (`limits.idle_timeout_s`): one never fed is removed, one fed and left finishes (its results
+//! stay readable), and one with a client connected runs on however quiet it is; and creations
+//! past `limits.session_creations_per_min` are refused.
 
 mod server_support;
 
@@ -9,7 +10,7 @@ use std::time::{Duration, Instant};
 use avsep::protocol::rest::SessionState;
 use avsep::protocol::{AudioFrame, SampleEncoding};
 use avsep::server::ServerConfig;
-use avsep::server::client::connect;
+use avsep::server::client::{connect, create_body, http};
 use futures_util::SinkExt;
 use server_support::{TestServer, scene, settings};
 use tokio_tungstenite::tungstenite::Message;
@@ -79,5 +80,26 @@ async fn a_zero_idle_timeout_never_ends_a_session() {
         server.registry.get(&s.id).map(|s| s.state()),
         Some(SessionState::Running)
     );
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn creations_past_the_rate_are_refused_and_the_server_goes_on() {
+    let mut cfg = ServerConfig::default();
+    cfg.limits.session_creations_per_min = 3.0;
+    let server = TestServer::start(cfg).await;
+    let sc = scene("uca8", 1.0, 1, 3);
+    for _ in 0..3 {
+        server.create(&sc, settings(1), None).await;
+    }
+    let body = serde_json::to_vec(&create_body(&sc.layout, Some(settings(1)))).unwrap();
+    let r = http(&server.host(), "POST", "/v1/sessions", None, Some(&body))
+        .await
+        .unwrap();
+    assert_eq!(r.status, 429, "{}", r.text());
+    let e: avsep::protocol::rest::ErrorResponse = r.json().unwrap();
+    assert_eq!(e.error.code, "rate_limited");
+    assert!(e.error.message.contains("session_creations_per_min"));
+    assert_eq!(server.registry.list().len(), 3);
     server.stop().await;
 }
