@@ -1,9 +1,10 @@
 //! Inbound samples of one session (`avsep/<session>/in/**`): checked for the session's token,
 //! decoded with the WebSocket's decoders, and handed to the session's bounded queue with
-//! [`Session::submit`](crate::server::session::Session::submit) (which never blocks: a full queue refuses with `queue_full`). Every
-//! refusal is counted and published on `out/events` as an error naming the field, at most
-//! `limits.zenoh_refusals_per_s` a second (apart for samples without credentials, so a
-//! stranger's flood cannot hide a device's own refusals); the session goes on.
+//! [`Session::submit`](crate::server::session::Session::submit) (which never blocks: a full
+//! queue refuses with `queue_full`). Every refusal is counted and published on `out/events` as
+//! an error naming the field, at most `limits.zenoh_refusals_per_s` a second (apart for samples
+//! without credentials, so a stranger's flood cannot hide a device's own refusals); the
+//! session goes on.
 
 use std::sync::Mutex;
 use std::time::Instant;
