@@ -6,7 +6,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{GeometryError, Layout};
-use crate::pipeline::ConfigError;
+use crate::pipeline::{ConfigError, PipelineConfig};
 
 use super::zenoh_transport::ZenohConfig;
 
@@ -77,6 +77,11 @@ pub struct Limits {
     /// localiser's tables grow with it (one pair's lags span its distance), so it bounds a
     /// session's memory. A 16-microphone array of 30 cm spans about 25 m.
     pub max_pair_span_m: f64,
+    /// Largest STFT frame (samples) a session's settings may choose for its localisation or
+    /// its separation: their per-bin tables grow with it, times the microphone pairs. On one
+    /// 64-microphone array the localiser alone measured 186 MB at the default 2048-sample
+    /// frame, 336 MB at 4096 and 4.5 GB at 65536 (`avsep process`, maximum resident size).
+    pub max_frame: usize,
     /// Refusals of Zenoh input a session publishes on `out/events` per second (as many at
     /// once), counted apart for samples without valid credentials and for the rest. Those over
     /// the rate are still counted in the metrics; the next one published says how many were
@@ -93,6 +98,102 @@ pub struct Limits {
 }
 
 impl Limits {
+    /// Refuses settings whose analysis frames pass `max_frame`, naming the field
+    /// (`localize.frame`, `separate.frame`), before anything is sized from them.
+    pub fn check_settings(&self, settings: &PipelineConfig) -> Result<(), ConfigError> {
+        for (field, frame) in [
+            ("localize.frame", settings.localize.frame),
+            ("separate.frame", settings.separate.frame),
+        ] {
+            if frame > self.max_frame {
+                return Err(ConfigError::new(
+                    field,
+                    format!(
+                        "{frame} samples is more than limits.max_frame ({}): the per-bin \
+                         tables grow with it",
+                        self.max_frame
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks every limit; the error names the first bad one (`limits.<name>`).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let l = self;
+        let positive = [
+            ("limits.max_sessions", l.max_sessions),
+            ("limits.max_clients_per_session", l.max_clients_per_session),
+            ("limits.max_audio_samples", l.max_audio_samples),
+            ("limits.max_message_bytes", l.max_message_bytes),
+            ("limits.max_body_bytes", l.max_body_bytes),
+            ("limits.queue_depth", l.queue_depth),
+            ("limits.output_buffer", l.output_buffer),
+            ("limits.history_steps", l.history_steps),
+            ("limits.max_microphones", l.max_microphones),
+            ("limits.max_frame", l.max_frame),
+        ];
+        if let Some((field, _)) = positive.iter().find(|(_, v)| *v == 0) {
+            return Err(ConfigError::new(*field, "must be at least 1"));
+        }
+        let frame_bytes = crate::protocol::audio_frame::AUDIO_IN_HEADER + 4 * l.max_audio_samples;
+        if l.max_message_bytes < frame_bytes {
+            return Err(ConfigError::new(
+                "limits.max_message_bytes",
+                format!("must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"),
+            ));
+        }
+        let finite = |v: f64| v.is_finite();
+        let numbers: [(&str, f64, bool, &str); 6] = [
+            (
+                "limits.finished_ttl_s",
+                l.finished_ttl_s,
+                l.finished_ttl_s >= 0.0,
+                ">= 0 s",
+            ),
+            (
+                "limits.zenoh_refusals_per_s",
+                l.zenoh_refusals_per_s,
+                l.zenoh_refusals_per_s >= 0.0,
+                ">= 0",
+            ),
+            (
+                "limits.idle_timeout_s",
+                l.idle_timeout_s,
+                l.idle_timeout_s >= 0.0,
+                ">= 0 s",
+            ),
+            (
+                "limits.session_creations_per_min",
+                l.session_creations_per_min,
+                l.session_creations_per_min > 0.0,
+                "> 0",
+            ),
+            (
+                "limits.max_pair_span_m",
+                l.max_pair_span_m,
+                l.max_pair_span_m > 0.0,
+                "> 0 m",
+            ),
+            (
+                "limits.control_timeout_s",
+                l.control_timeout_s,
+                l.control_timeout_s > 0.0 && l.control_timeout_s <= 600.0,
+                "in (0, 600] s",
+            ),
+        ];
+        for (field, v, ok, range) in numbers {
+            if !(ok && finite(v)) {
+                return Err(ConfigError::new(
+                    field,
+                    format!("must be a finite number {range}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Refuses a layout beyond `max_microphones` or `max_pair_span_m`, naming the array that
     /// passes the limit (`arrays[i].mics`), before anything is sized from it.
     pub fn check_layout(&self, layout: &Layout) -> Result<(), GeometryError> {
@@ -147,6 +248,7 @@ impl Default for Limits {
             control_timeout_s: 5.0,
             max_microphones: 64,
             max_pair_span_m: 250.0,
+            max_frame: 4096,
             zenoh_refusals_per_s: 10.0,
             idle_timeout_s: 900.0,
             session_creations_per_min: 60.0,
@@ -211,60 +313,7 @@ impl ServerConfig {
         if !(0.0..=600.0).contains(&self.drain_timeout_s) {
             return Err(ConfigError::new("drain_timeout_s", "must be in 0..=600 s"));
         }
-        let l = &self.limits;
-        let positive = [
-            ("limits.max_sessions", l.max_sessions),
-            ("limits.max_clients_per_session", l.max_clients_per_session),
-            ("limits.max_audio_samples", l.max_audio_samples),
-            ("limits.max_message_bytes", l.max_message_bytes),
-            ("limits.max_body_bytes", l.max_body_bytes),
-            ("limits.queue_depth", l.queue_depth),
-            ("limits.output_buffer", l.output_buffer),
-            ("limits.history_steps", l.history_steps),
-            ("limits.max_microphones", l.max_microphones),
-        ];
-        if let Some((field, _)) = positive.iter().find(|(_, v)| *v == 0) {
-            return Err(ConfigError::new(*field, "must be at least 1"));
-        }
-        let frame_bytes = crate::protocol::audio_frame::AUDIO_IN_HEADER + 4 * l.max_audio_samples;
-        if l.max_message_bytes < frame_bytes {
-            return Err(ConfigError::new(
-                "limits.max_message_bytes",
-                format!("must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"),
-            ));
-        }
-        if !(l.finished_ttl_s >= 0.0 && l.finished_ttl_s.is_finite()) {
-            return Err(ConfigError::new(
-                "limits.finished_ttl_s",
-                "must be a finite number of seconds >= 0",
-            ));
-        }
-        for (field, v) in [
-            ("limits.zenoh_refusals_per_s", l.zenoh_refusals_per_s),
-            ("limits.idle_timeout_s", l.idle_timeout_s),
-        ] {
-            if !(v >= 0.0 && v.is_finite()) {
-                return Err(ConfigError::new(field, "must be a finite number >= 0"));
-            }
-        }
-        if !(l.session_creations_per_min > 0.0 && l.session_creations_per_min.is_finite()) {
-            return Err(ConfigError::new(
-                "limits.session_creations_per_min",
-                "must be a finite number > 0",
-            ));
-        }
-        if !(l.max_pair_span_m > 0.0 && l.max_pair_span_m.is_finite()) {
-            return Err(ConfigError::new(
-                "limits.max_pair_span_m",
-                "must be a finite number of metres > 0",
-            ));
-        }
-        if !(l.control_timeout_s > 0.0 && l.control_timeout_s <= 600.0) {
-            return Err(ConfigError::new(
-                "limits.control_timeout_s",
-                "must be in (0, 600] s",
-            ));
-        }
+        self.limits.validate()?;
         if !(0..=19).contains(&self.execution.separation_nice) {
             return Err(ConfigError::new(
                 "execution.separation_nice",
@@ -291,6 +340,49 @@ mod tests {
         c.validate().unwrap();
         assert!(c.bind.starts_with("127.0.0.1:"));
         assert!(c.admin_key.is_none() && c.cors_origins.is_empty());
+    }
+
+    #[test]
+    fn frames_past_the_limit_are_named() {
+        let limits = Limits::default();
+        let mut settings = PipelineConfig::default();
+        limits.check_settings(&settings).unwrap();
+        (settings.separate.frame, settings.separate.hop) = (8192, 4096);
+        let e = limits.check_settings(&settings).unwrap_err();
+        assert_eq!(e.field, "separate.frame");
+        assert!(e.message.contains("limits.max_frame"), "{e}");
+        settings.localize.frame = 1 << 16;
+        assert_eq!(
+            limits.check_settings(&settings).unwrap_err().field,
+            "localize.frame"
+        );
+    }
+
+    #[test]
+    fn a_bad_time_or_rate_limit_is_named() {
+        type Spoil = fn(&mut Limits);
+        let cases: [(&str, Spoil); 6] = [
+            ("limits.finished_ttl_s", |l| l.finished_ttl_s = -1.0),
+            ("limits.zenoh_refusals_per_s", |l| {
+                l.zenoh_refusals_per_s = f64::NAN
+            }),
+            ("limits.idle_timeout_s", |l| {
+                l.idle_timeout_s = f64::INFINITY
+            }),
+            ("limits.session_creations_per_min", |l| {
+                l.session_creations_per_min = 0.0
+            }),
+            ("limits.max_pair_span_m", |l| l.max_pair_span_m = 0.0),
+            ("limits.control_timeout_s", |l| l.control_timeout_s = 601.0),
+        ];
+        for (field, spoil) in cases {
+            let mut c = ServerConfig::default();
+            spoil(&mut c.limits);
+            assert_eq!(c.validate().unwrap_err().field, field);
+        }
+        let mut c = ServerConfig::default();
+        (c.limits.idle_timeout_s, c.limits.zenoh_refusals_per_s) = (0.0, 0.0);
+        c.validate().unwrap();
     }
 
     #[test]

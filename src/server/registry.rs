@@ -151,6 +151,10 @@ impl Registry {
             .check_layout(&layout)
             .map_err(|e| ApiError::geometry(e, ""))?;
         let settings = req.settings.unwrap_or_default();
+        self.config
+            .limits
+            .check_settings(&settings)
+            .map_err(|e| ApiError::config(e, "settings"))?;
         let id = auth::new_session_id();
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
         let seed = settings
