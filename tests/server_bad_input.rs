@@ -385,6 +385,16 @@ async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::sc
         (r.status, err(&r).field.as_deref()),
         (422, Some("camera_wait_s"))
     );
+    let r = patch(serde_json::json!({"separate": {"lifecycle": {"max_streams": 100}}})).await;
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (422, Some("separate.lifecycle.max_streams"))
+    );
+    assert!(
+        err(&r).message.contains("limits.max_streams"),
+        "{}",
+        r.text()
+    );
     let r = patch(serde_json::json!({"bogus": 1})).await;
     assert_eq!(r.status, 422);
     assert!(err(&r).message.contains("bogus"));

@@ -222,6 +222,9 @@ pub(super) async fn patch_settings(
     let text = merged.to_string();
     let settings: PipelineConfig = parse_json(text.as_bytes())?;
     settings.validate().map_err(|e| ApiError::config(e, ""))?;
+    s.limits()
+        .check_settings(&settings)
+        .map_err(|e| ApiError::config(e, ""))?;
     s.configure(settings).await?;
     Ok(Json(s.settings()))
 }

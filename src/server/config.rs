@@ -82,6 +82,10 @@ pub struct Limits {
     /// 64-microphone array the localiser alone measured 186 MB at the default 2048-sample
     /// frame, 336 MB at 4096 and 4.5 GB at 65536 (`avsep process`, maximum resident size).
     pub max_frame: usize,
+    /// Most labels a session's settings may have separated at once
+    /// (`separate.lifecycle.max_streams`): each stream's state grows with the square of the
+    /// microphones (about 17 MB per label at 64 microphones and the default frame).
+    pub max_streams: usize,
     /// Refusals of Zenoh input a session publishes on `out/events` per second (as many at
     /// once), counted apart for samples without valid credentials and for the rest. Those over
     /// the rate are still counted in the metrics; the next one published says how many were
@@ -98,20 +102,37 @@ pub struct Limits {
 }
 
 impl Limits {
-    /// Refuses settings whose analysis frames pass `max_frame`, naming the field
-    /// (`localize.frame`, `separate.frame`), before anything is sized from them.
+    /// Refuses settings whose analysis frames pass `max_frame` or whose stream cap passes
+    /// `max_streams`, naming the field (`localize.frame`, `separate.lifecycle.max_streams`),
+    /// before anything is sized from them.
     pub fn check_settings(&self, settings: &PipelineConfig) -> Result<(), ConfigError> {
-        for (field, frame) in [
-            ("localize.frame", settings.localize.frame),
-            ("separate.frame", settings.separate.frame),
+        let streams = settings.separate.lifecycle.max_streams;
+        for (field, value, limit, name) in [
+            (
+                "localize.frame",
+                settings.localize.frame,
+                self.max_frame,
+                "max_frame",
+            ),
+            (
+                "separate.frame",
+                settings.separate.frame,
+                self.max_frame,
+                "max_frame",
+            ),
+            (
+                "separate.lifecycle.max_streams",
+                streams,
+                self.max_streams,
+                "max_streams",
+            ),
         ] {
-            if frame > self.max_frame {
+            if value > limit {
                 return Err(ConfigError::new(
                     field,
                     format!(
-                        "{frame} samples is more than limits.max_frame ({}): the per-bin \
-                         tables grow with it",
-                        self.max_frame
+                        "{value} is more than limits.{name} ({limit}): a session's tables \
+                         grow with it"
                     ),
                 ));
             }
@@ -133,6 +154,7 @@ impl Limits {
             ("limits.history_steps", l.history_steps),
             ("limits.max_microphones", l.max_microphones),
             ("limits.max_frame", l.max_frame),
+            ("limits.max_streams", l.max_streams),
         ];
         if let Some((field, _)) = positive.iter().find(|(_, v)| *v == 0) {
             return Err(ConfigError::new(*field, "must be at least 1"));
@@ -249,6 +271,7 @@ impl Default for Limits {
             max_microphones: 64,
             max_pair_span_m: 250.0,
             max_frame: 4096,
+            max_streams: 16,
             zenoh_refusals_per_s: 10.0,
             idle_timeout_s: 900.0,
             session_creations_per_min: 60.0,
@@ -343,7 +366,7 @@ mod tests {
     }
 
     #[test]
-    fn frames_past_the_limit_are_named() {
+    fn frames_and_stream_caps_past_the_limits_are_named() {
         let limits = Limits::default();
         let mut settings = PipelineConfig::default();
         limits.check_settings(&settings).unwrap();

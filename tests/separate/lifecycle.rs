@@ -162,3 +162,40 @@ fn a_label_missing_for_a_step_keeps_its_stream_then_fades_out() {
     );
     assert!(sep.labels().is_empty());
 }
+
+/// With `max_streams` 2 and four labels, the first two are separated and the others wait; when
+/// one of the two leaves, its stream fades out and is dropped, and a waiting label takes the
+/// free stream.
+#[test]
+fn past_the_stream_cap_a_label_waits_for_a_dropped_stream() {
+    let centre = Vec3::new(3.0, 2.5, 1.2);
+    let mics = uca(8, 0.05, centre);
+    let mut cfg = SeparatorConfig::default();
+    cfg.lifecycle.max_streams = 2;
+    let mut sep = Separator::new(&layout_of(&mics), &cfg).unwrap();
+    let g = sep.frame_geometry();
+    let mut stft = avsep::dsp::StreamingStft::new(g, mics.len());
+    let quiet = vec![vec![0.0; g.hop]; mics.len()];
+    let refs: Vec<&[f64]> = quiet.iter().map(|v| v.as_slice()).collect();
+    let spots: Vec<Vec3> = (0..4)
+        .map(|i| centre + Vec3::new(1.5, -1.0 + 0.6 * f64::from(i), 0.2))
+        .collect();
+    let all = static_targets(&spots, 1.0);
+    let mut out = Vec::new();
+    let mut labels_after = |sep: &mut Separator, targets: &[_], frames: usize| {
+        for _ in 0..frames {
+            let spec = stft.push(&refs).clone();
+            sep.process_into(&spec, targets, &mut out);
+        }
+        out.iter().map(|(l, _)| *l).collect::<Vec<_>>()
+    };
+    assert_eq!(
+        labels_after(&mut sep, &all, 10),
+        [all[0].label, all[1].label]
+    );
+    // The first label leaves: after its grace and fade-out (0.32 s) the third takes its place.
+    let rest = all[1..].to_vec();
+    let later = labels_after(&mut sep, &rest, (0.5 * FS) as usize / g.hop);
+    assert_eq!(later, [all[1].label, all[2].label]);
+    assert_eq!(sep.labels().len(), 2);
+}

@@ -274,6 +274,11 @@ pub struct LifecycleConfig {
     pub grace_s: f64,
     /// Fade-out of a disappeared label's stream (s), after which its state is dropped.
     pub fade_out_s: f64,
+    /// Labels separated at once. A label that appears while this many streams exist (fading
+    /// ones included) gets no stream until one is dropped; the first labels keep theirs. Each
+    /// stream's state grows with the square of the microphones and its work with the labels,
+    /// so this bounds a session's memory and CPU against a scene (or a client) with many faces.
+    pub max_streams: usize,
 }
 
 impl Default for LifecycleConfig {
@@ -282,6 +287,7 @@ impl Default for LifecycleConfig {
             fade_in_s: 0.064,
             grace_s: 0.256,
             fade_out_s: 0.064,
+            max_streams: 16,
         }
     }
 }

@@ -193,10 +193,15 @@ impl HarmonicConfig {
 }
 
 impl LifecycleConfig {
-    /// Checks the fades and the grace time.
+    /// Checks the fades, the grace time and the stream cap.
     pub fn validate(&self) -> Result<(), ConfigError> {
         in_range("fade_in_s", self.fade_in_s, 0.0, 10.0)?;
         in_range("grace_s", self.grace_s, 0.0, 60.0)?;
-        in_range("fade_out_s", self.fade_out_s, 0.0, 10.0)
+        in_range("fade_out_s", self.fade_out_s, 0.0, 10.0)?;
+        ConfigError::check(
+            (1..=1024).contains(&self.max_streams),
+            "max_streams",
+            "must be in 1..=1024",
+        )
     }
 }

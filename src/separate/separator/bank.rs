@@ -33,7 +33,8 @@ impl Separator {
                     self.streams[j].known_pitch = t.pitch;
                     present[j] = true;
                 }
-                None if finite => {
+                // Past the cap a label waits, unseparated, for a stream to be dropped.
+                None if finite && self.streams.len() < self.cfg.lifecycle.max_streams => {
                     let mut s =
                         Stream::new(t.label, t.position, t.direction_only, self.groups.len());
                     s.presence = presence;
