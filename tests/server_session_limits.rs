@@ -9,17 +9,22 @@ use std::time::{Duration, Instant};
 
 use avsep::protocol::rest::SessionState;
 use avsep::protocol::{AudioFrame, SampleEncoding};
-use avsep::server::ServerConfig;
 use avsep::server::client::{connect, create_body, http};
+use avsep::server::{Limits, ServerConfig};
 use futures_util::SinkExt;
 use server_support::{TestServer, scene, settings};
 use tokio_tungstenite::tungstenite::Message;
 
+/// A test server with the default settings but for its limits as `edit` leaves them.
+async fn server_with(edit: impl FnOnce(&mut Limits)) -> TestServer {
+    let mut cfg = ServerConfig::default();
+    edit(&mut cfg.limits);
+    TestServer::start(cfg).await
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn unused_sessions_end_and_used_ones_run_on() {
-    let mut cfg = ServerConfig::default();
-    cfg.limits.idle_timeout_s = 0.5;
-    let server = TestServer::start(cfg).await;
+    let server = server_with(|l| l.idle_timeout_s = 0.5).await;
     let sc = scene("uca8", 1.0, 1, 3);
     let never_fed = server.create(&sc, settings(1), None).await;
     let fed = server.create(&sc, settings(1), None).await;
@@ -68,9 +73,7 @@ async fn unused_sessions_end_and_used_ones_run_on() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_zero_idle_timeout_never_ends_a_session() {
-    let mut cfg = ServerConfig::default();
-    cfg.limits.idle_timeout_s = 0.0;
-    let server = TestServer::start(cfg).await;
+    let server = server_with(|l| l.idle_timeout_s = 0.0).await;
     let s = server
         .create(&scene("uca8", 1.0, 1, 3), settings(1), None)
         .await;
@@ -85,9 +88,7 @@ async fn a_zero_idle_timeout_never_ends_a_session() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn creations_past_the_rate_are_refused_and_the_server_goes_on() {
-    let mut cfg = ServerConfig::default();
-    cfg.limits.session_creations_per_min = 3.0;
-    let server = TestServer::start(cfg).await;
+    let server = server_with(|l| l.session_creations_per_min = 3.0).await;
     let sc = scene("uca8", 1.0, 1, 3);
     for _ in 0..3 {
         server.create(&sc, settings(1), None).await;

@@ -166,7 +166,6 @@ impl Limits {
                 format!("must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"),
             ));
         }
-        let finite = |v: f64| v.is_finite();
         let numbers: [(&str, f64, bool, &str); 6] = [
             (
                 "limits.finished_ttl_s",
@@ -206,7 +205,7 @@ impl Limits {
             ),
         ];
         for (field, v, ok, range) in numbers {
-            if !(ok && finite(v)) {
+            if !(ok && v.is_finite()) {
                 return Err(ConfigError::new(
                     field,
                     format!("must be a finite number {range}"),

@@ -221,7 +221,7 @@ fn on_text(
     selection: &mut OutputSelection,
     subscription: &mut Subscription,
 ) -> Option<ErrorBody> {
-    let msg = match parse_message(text) {
+    let msg = match ClientMessage::parse(text) {
         Ok(m) => m,
         Err(e) => {
             s.counters.refused(&e.code);
@@ -254,12 +254,6 @@ fn on_text(
             Some(super::session::Rejection::from(e).to_body())
         }
     }
-}
-
-/// Parses a client message; malformed JSON is `bad_json`, a well-formed message that does not
-/// fit the protocol is `bad_message` naming the offending field ([`ClientMessage::parse`]).
-pub fn parse_message(text: &str) -> Result<ClientMessage, ErrorBody> {
-    ClientMessage::parse(text)
 }
 
 /// The wire message of an output for this client, if its selection wants it.

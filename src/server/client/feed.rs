@@ -197,6 +197,6 @@ mod tests {
             }],
         };
         let text = serde_json::to_string(&sent).unwrap();
-        assert_eq!(crate::server::stream::parse_message(&text).unwrap(), sent);
+        assert_eq!(ClientMessage::parse(&text).unwrap(), sent);
     }
 }

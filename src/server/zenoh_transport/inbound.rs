@@ -18,7 +18,6 @@ use crate::protocol::{AudioFrame, ClientMessage, ErrorBody};
 use crate::server::auth;
 use crate::server::rate_limit::TokenBucket;
 use crate::server::session::{Input, Output, Rejection, SessionHandle};
-use crate::server::stream::parse_message;
 
 use super::ZENOH_CLIENT;
 
@@ -141,7 +140,7 @@ fn message(s: &SessionHandle, payload: &[u8]) -> Result<ClientMessage, ErrorBody
             format!("the payload is not UTF-8 JSON: {e}"),
         )
     })?;
-    parse_message(text).inspect_err(|e| s.counters.refused(&e.code))
+    ClientMessage::parse(text).inspect_err(|e| s.counters.refused(&e.code))
 }
 
 fn wrong_type(s: &SessionHandle, expected: &str) -> ErrorBody {
