@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use clap::{Args, ValueEnum};
 
 use super::{CliError, Progress};
-use crate::pipeline::PipelineConfig;
 use crate::pipeline::offline::{OfflineOptions, ProcessError, process_scene};
+use crate::pipeline::{PipelineConfig, SizeBounds};
 use crate::scene::Scene;
 use crate::separate::PitchPart;
 
@@ -27,6 +27,11 @@ pub struct ProcessArgs {
     /// Steer the separator with the scene's true trajectories instead of the tracker.
     #[arg(long)]
     pub oracle_tracks: bool,
+    /// Lift the server's default size limits (microphones, the span of their pairs, analysis
+    /// frames, separated labels), which a scene or settings otherwise must pass before anything
+    /// is sized from them: a layout past them can take gigabytes.
+    #[arg(long)]
+    pub no_limits: bool,
     /// With --oracle-tracks: give the harmonic grouping each true source's pitch (read from its
     /// truth signal) instead of estimating it, to measure the grouping with the right pitch.
     /// `--oracle-pitch=f0` hands over the F0 only (the voicing is the comb's there, through the
@@ -104,6 +109,7 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
             oracle_tracks: args.oracle_tracks,
             oracle_pitch: args.oracle_pitch.map(PitchPart::from),
             oracle_mask: args.oracle_mask,
+            bounds: (!args.no_limits).then(SizeBounds::default),
             ..Default::default()
         },
         &|f| bar.set((f * 1000.0) as u64),
@@ -112,6 +118,10 @@ pub fn run(args: ProcessArgs) -> Result<(), CliError> {
         ProcessError::Files(e) => CliError::input(e),
         ProcessError::Config(e) => CliError::input(format!("configuration: {e}")),
         ProcessError::Scene(m) => CliError::input(m),
+        ProcessError::TooLarge(e) => CliError::input(format!(
+            "{}: {e} (the server's default limits; --no-limits lifts them)",
+            args.scene.display()
+        )),
     })?;
     bar.finish();
     if args.json {

@@ -2,6 +2,7 @@
 //! detections, the wiring of the localiser, tracker and separator, and the offline runner.
 
 mod audio_history;
+mod bounds;
 mod clock;
 pub mod config;
 pub mod config_doc;
@@ -17,6 +18,7 @@ pub mod speaking;
 pub mod stages;
 
 pub use audio_history::AudioHistory;
+pub use bounds::SizeBounds;
 pub use clock::StepClock;
 pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, PipelineConfig};
 pub use events::{EventSink, PipelineEvent};

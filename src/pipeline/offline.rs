@@ -8,19 +8,20 @@ use std::time::Instant;
 use serde::Serialize;
 
 use crate::dsp::FrameGeometry;
+use crate::field_error::FieldError;
 use crate::label::Label;
 use crate::scene::format::PitchLine;
 use crate::scene::output::{files, prepare_dir};
 use crate::scene::{Audio, JsonlWriter, SampleFormat, Scene, SceneError, write_json};
 use crate::separate::PitchPart;
 
-use super::PipelineEvent;
 use super::config::{ConfigError, PipelineConfig};
 use super::diarization::{Diarizer, to_rttm};
 use super::input::InputError;
 use super::oracle_mask::ideal_ratio_mask;
 use super::session::{Pipeline, PipelineStats};
 use super::stages::oracle_label;
+use super::{PipelineEvent, SizeBounds};
 
 /// Options of an offline run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -36,6 +37,9 @@ pub struct OfflineOptions {
     pub oracle_mask: bool,
     /// Audio is pushed in blocks of this many sample frames (as a client would stream it).
     pub block_samples: usize,
+    /// The scene's layout and the settings are checked against these before anything is sized
+    /// from them (the server's default limits unless lifted); `None` checks nothing.
+    pub bounds: Option<SizeBounds>,
 }
 
 impl Default for OfflineOptions {
@@ -45,6 +49,7 @@ impl Default for OfflineOptions {
             oracle_pitch: None,
             oracle_mask: false,
             block_samples: 1024,
+            bounds: Some(SizeBounds::default()),
         }
     }
 }
@@ -61,6 +66,9 @@ pub enum ProcessError {
     /// The scene lacks what the options need.
     #[error("{0}")]
     Scene(String),
+    /// The scene's layout or the settings pass the size bounds (the field is named).
+    #[error("{0}")]
+    TooLarge(FieldError),
 }
 
 /// Figures of an offline run, written to `summary.json`.
@@ -242,6 +250,14 @@ pub fn process_scene(
 ) -> Result<RunSummary, ProcessError> {
     let started = Instant::now();
     let seed = cfg.seed.unwrap_or(DEFAULT_OFFLINE_SEED);
+    if let Some(bounds) = opts.bounds {
+        bounds
+            .check_layout(&scene.layout)
+            .map_err(ProcessError::TooLarge)?;
+        bounds
+            .check_settings(&cfg)
+            .map_err(ProcessError::TooLarge)?;
+    }
     let mut pipeline = Pipeline::new(scene.layout.clone(), cfg.clone(), seed)?;
     if opts.oracle_tracks {
         let truth = scene.truth.clone().ok_or_else(|| {
@@ -433,4 +449,50 @@ fn feed_scene(
 enum Feed<'a> {
     Detection(&'a crate::scene::DetectionFrame),
     Device(&'a crate::scene::AudioMeasurementFrame),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::sim::{PresetOptions, SimConfig, simulate};
+
+    /// A scene past the size bounds is refused before anything is sized from it, naming the
+    /// field; without bounds the same scene runs.
+    #[test]
+    fn a_scene_past_the_size_bounds_is_refused_naming_the_field() {
+        let opts = PresetOptions {
+            duration_s: Some(1.0),
+            ..PresetOptions::default()
+        };
+        let scene = simulate(&SimConfig::preset("single", &opts, 1).unwrap(), 1).unwrap();
+        let out = tempfile::tempdir().unwrap();
+        let run = |bounds, cfg| {
+            let opts = OfflineOptions {
+                bounds,
+                ..OfflineOptions::default()
+            };
+            process_scene(&scene, cfg, out.path(), opts, &|_| {})
+        };
+        let few = SizeBounds {
+            max_microphones: 4,
+            ..SizeBounds::default()
+        };
+        match run(Some(few), PipelineConfig::default()) {
+            Err(ProcessError::TooLarge(e)) => {
+                assert_eq!(e.field, "arrays[0].mics");
+                assert!(e.message.contains("limits.max_microphones (4)"), "{e}");
+            }
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+        assert!(!out.path().join("tracks.jsonl").exists());
+        let mut big = PipelineConfig::default();
+        big.localize.frame = 8192;
+        match run(Some(SizeBounds::default()), big) {
+            Err(ProcessError::TooLarge(e)) => assert_eq!(e.field, "localize.frame"),
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+        let summary = run(None, PipelineConfig::default()).unwrap();
+        assert!(summary.duration_s > 0.9, "{summary:?}");
+        run(Some(SizeBounds::default()), PipelineConfig::default()).unwrap();
+    }
 }

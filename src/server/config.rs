@@ -6,7 +6,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::{GeometryError, Layout};
-use crate::pipeline::{ConfigError, PipelineConfig};
+use crate::pipeline::{ConfigError, PipelineConfig, SizeBounds};
 
 use super::zenoh_transport::ZenohConfig;
 
@@ -102,42 +102,20 @@ pub struct Limits {
 }
 
 impl Limits {
-    /// Refuses settings whose analysis frames pass `max_frame` or whose stream cap passes
-    /// `max_streams`, naming the field (`localize.frame`, `separate.lifecycle.max_streams`),
-    /// before anything is sized from them.
-    pub fn check_settings(&self, settings: &PipelineConfig) -> Result<(), ConfigError> {
-        let streams = settings.separate.lifecycle.max_streams;
-        for (field, value, limit, name) in [
-            (
-                "localize.frame",
-                settings.localize.frame,
-                self.max_frame,
-                "max_frame",
-            ),
-            (
-                "separate.frame",
-                settings.separate.frame,
-                self.max_frame,
-                "max_frame",
-            ),
-            (
-                "separate.lifecycle.max_streams",
-                streams,
-                self.max_streams,
-                "max_streams",
-            ),
-        ] {
-            if value > limit {
-                return Err(ConfigError::new(
-                    field,
-                    format!(
-                        "{value} is more than limits.{name} ({limit}): a session's tables \
-                         grow with it"
-                    ),
-                ));
-            }
+    /// The bounds every session's layout and settings are checked against before anything is
+    /// sized from them ([`SizeBounds`]).
+    pub fn bounds(&self) -> SizeBounds {
+        SizeBounds {
+            max_microphones: self.max_microphones,
+            max_pair_span_m: self.max_pair_span_m,
+            max_frame: self.max_frame,
+            max_streams: self.max_streams,
         }
-        Ok(())
+    }
+
+    /// Refuses settings past [`Limits::bounds`], naming the field.
+    pub fn check_settings(&self, settings: &PipelineConfig) -> Result<(), ConfigError> {
+        self.bounds().check_settings(settings)
     }
 
     /// Checks every limit; the error names the first bad one (`limits.<name>`).
@@ -215,47 +193,15 @@ impl Limits {
         Ok(())
     }
 
-    /// Refuses a layout beyond `max_microphones` or `max_pair_span_m`, naming the array that
-    /// passes the limit (`arrays[i].mics`), before anything is sized from it.
+    /// Refuses a layout past [`Limits::bounds`], naming the array (`arrays[i].mics`).
     pub fn check_layout(&self, layout: &Layout) -> Result<(), GeometryError> {
-        let total: usize = layout.arrays.iter().map(|a| a.mics.len()).sum();
-        let mut mics = 0;
-        let mut span = 0.0;
-        for (i, a) in layout.arrays.iter().enumerate() {
-            let field = format!("arrays[{i}].mics");
-            mics += a.mics.len();
-            if mics > self.max_microphones {
-                return Err(GeometryError::new(
-                    field,
-                    format!(
-                        "the session's arrays hold {total} microphones, more than \
-                         limits.max_microphones ({})",
-                        self.max_microphones
-                    ),
-                ));
-            }
-            span += a
-                .pairs()
-                .iter()
-                .map(|&(p, q)| (a.mics[p] - a.mics[q]).norm())
-                .sum::<f64>();
-            if span.is_nan() || span > self.max_pair_span_m {
-                return Err(GeometryError::new(
-                    field,
-                    format!(
-                        "the microphone pairs span {span:.1} m in all, more than \
-                         limits.max_pair_span_m ({} m): the localiser's tables grow with it",
-                        self.max_pair_span_m
-                    ),
-                ));
-            }
-        }
-        Ok(())
+        self.bounds().check_layout(layout)
     }
 }
 
 impl Default for Limits {
     fn default() -> Self {
+        let bounds = SizeBounds::default();
         Self {
             max_sessions: 64,
             max_clients_per_session: 8,
@@ -267,10 +213,10 @@ impl Default for Limits {
             history_steps: 2048,
             finished_ttl_s: 600.0,
             control_timeout_s: 5.0,
-            max_microphones: 64,
-            max_pair_span_m: 250.0,
-            max_frame: 4096,
-            max_streams: 16,
+            max_microphones: bounds.max_microphones,
+            max_pair_span_m: bounds.max_pair_span_m,
+            max_frame: bounds.max_frame,
+            max_streams: bounds.max_streams,
             zenoh_refusals_per_s: 10.0,
             idle_timeout_s: 900.0,
             session_creations_per_min: 60.0,
@@ -365,22 +311,6 @@ mod tests {
     }
 
     #[test]
-    fn frames_and_stream_caps_past_the_limits_are_named() {
-        let limits = Limits::default();
-        let mut settings = PipelineConfig::default();
-        limits.check_settings(&settings).unwrap();
-        (settings.separate.frame, settings.separate.hop) = (8192, 4096);
-        let e = limits.check_settings(&settings).unwrap_err();
-        assert_eq!(e.field, "separate.frame");
-        assert!(e.message.contains("limits.max_frame"), "{e}");
-        settings.localize.frame = 1 << 16;
-        assert_eq!(
-            limits.check_settings(&settings).unwrap_err().field,
-            "localize.frame"
-        );
-    }
-
-    #[test]
     fn a_bad_time_or_rate_limit_is_named() {
         type Spoil = fn(&mut Limits);
         let cases: [(&str, Spoil); 6] = [
@@ -428,41 +358,5 @@ mod tests {
         assert_eq!(e.field, "limits.max_message_bytes");
         let e = ServerConfig::parse("[execution]\nseparation_nice = 20\n").unwrap_err();
         assert_eq!(e.field, "execution.separation_nice");
-    }
-
-    #[test]
-    fn a_layout_is_checked_against_the_microphone_limits() {
-        use crate::geometry::{MicArray, Vec3};
-        // Measurement-only arrays: the limits count microphones whether or not they carry audio.
-        let array = |id: &str, mics: Vec<Vec3>| MicArray::new(id, mics, Vec::new()).unwrap();
-        let line = |n: usize, spacing: f64| -> Vec<Vec3> {
-            (0..n)
-                .map(|i| Vec3::new(spacing * i as f64, 0.0, 1.0))
-                .collect()
-        };
-        let layout = |arrays: Vec<MicArray>| Layout::new(16_000, 343.0, arrays, vec![], None);
-        let limits = Limits {
-            max_microphones: 8,
-            max_pair_span_m: 10.0,
-            ..Limits::default()
-        };
-        // Two 4-microphone lines of 10 cm spacing: 8 microphones, pairs spanning 2 m in all.
-        let ok = layout(vec![array("a", line(4, 0.1)), array("b", line(4, 0.1))]).unwrap();
-        assert!(limits.check_layout(&ok).is_ok());
-        // A ninth microphone: the array that passes the count is named.
-        let many = layout(vec![array("a", line(4, 0.1)), array("b", line(5, 0.1))]).unwrap();
-        let e = limits.check_layout(&many).unwrap_err();
-        assert_eq!(e.field, "arrays[1].mics");
-        assert!(e.message.contains("9 microphones"), "{e}");
-        // Pairs spanning 10.5 m, and microphones so far apart that the distances overflow.
-        let wide = layout(vec![array("a", line(2, 0.5)), array("b", line(2, 10.0))]).unwrap();
-        let e = limits.check_layout(&wide).unwrap_err();
-        assert_eq!(e.field, "arrays[1].mics");
-        assert!(e.message.contains("limits.max_pair_span_m"), "{e}");
-        let huge = vec![Vec3::new(-1e308, 0.0, 0.0), Vec3::new(1e308, 0.0, 0.0)];
-        let e = limits
-            .check_layout(&layout(vec![array("a", huge)]).unwrap())
-            .unwrap_err();
-        assert_eq!(e.field, "arrays[0].mics");
     }
 }

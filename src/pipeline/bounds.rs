@@ -1,0 +1,175 @@
+//! How large one pipeline may be sized: its microphones, the span of their pairs, its analysis
+//! frames and the labels it separates at once. The per-bin tables of the localiser and the
+//! separator grow with these, so a layout or settings past them would take the machine's memory
+//! before the first sample. The server's `limits` carry these bounds for every session, and
+//! `avsep process` applies the same defaults to a scene folder.
+
+use crate::geometry::{GeometryError, Layout};
+
+use super::{ConfigError, PipelineConfig};
+
+/// The size bounds of one pipeline; each check names the field past its bound and the limit
+/// (`limits.<name>`) it passes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SizeBounds {
+    /// Microphones in all arrays together.
+    pub max_microphones: usize,
+    /// Sum over each array's microphone pairs of their distances (m), all arrays together.
+    pub max_pair_span_m: f64,
+    /// Largest STFT frame (samples) of the localisation or the separation.
+    pub max_frame: usize,
+    /// Most labels separated at once (`separate.lifecycle.max_streams`).
+    pub max_streams: usize,
+}
+
+impl Default for SizeBounds {
+    /// The server's default limits: a 64-microphone array of 30 cm diameter passes, a layout
+    /// whose localiser tables would take gigabytes does not.
+    fn default() -> Self {
+        Self {
+            max_microphones: 64,
+            max_pair_span_m: 250.0,
+            max_frame: 4096,
+            max_streams: 16,
+        }
+    }
+}
+
+impl SizeBounds {
+    /// Refuses settings whose analysis frames pass `max_frame` or whose stream cap passes
+    /// `max_streams`, naming the field (`localize.frame`, `separate.lifecycle.max_streams`),
+    /// before anything is sized from them.
+    pub fn check_settings(&self, settings: &PipelineConfig) -> Result<(), ConfigError> {
+        for (field, value, limit, name) in [
+            (
+                "localize.frame",
+                settings.localize.frame,
+                self.max_frame,
+                "max_frame",
+            ),
+            (
+                "separate.frame",
+                settings.separate.frame,
+                self.max_frame,
+                "max_frame",
+            ),
+            (
+                "separate.lifecycle.max_streams",
+                settings.separate.lifecycle.max_streams,
+                self.max_streams,
+                "max_streams",
+            ),
+        ] {
+            if value > limit {
+                return Err(ConfigError::new(
+                    field,
+                    format!(
+                        "{value} is more than limits.{name} ({limit}): a session's tables \
+                         grow with it"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses a layout beyond `max_microphones` or `max_pair_span_m`, naming the array that
+    /// passes the limit (`arrays[i].mics`), before anything is sized from it.
+    pub fn check_layout(&self, layout: &Layout) -> Result<(), GeometryError> {
+        let total: usize = layout.arrays.iter().map(|a| a.mics.len()).sum();
+        let mut mics = 0;
+        let mut span = 0.0;
+        for (i, a) in layout.arrays.iter().enumerate() {
+            let field = format!("arrays[{i}].mics");
+            mics += a.mics.len();
+            if mics > self.max_microphones {
+                return Err(GeometryError::new(
+                    field,
+                    format!(
+                        "the session's arrays hold {total} microphones, more than \
+                         limits.max_microphones ({})",
+                        self.max_microphones
+                    ),
+                ));
+            }
+            span += a
+                .pairs()
+                .iter()
+                .map(|&(p, q)| (a.mics[p] - a.mics[q]).norm())
+                .sum::<f64>();
+            if span.is_nan() || span > self.max_pair_span_m {
+                return Err(GeometryError::new(
+                    field,
+                    format!(
+                        "the microphone pairs span {span:.1} m in all, more than \
+                         limits.max_pair_span_m ({} m): the localiser's tables grow with it",
+                        self.max_pair_span_m
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{MicArray, Vec3};
+
+    #[test]
+    fn frames_and_stream_caps_past_the_bounds_are_named() {
+        let bounds = SizeBounds::default();
+        let mut settings = PipelineConfig::default();
+        bounds.check_settings(&settings).unwrap();
+        (settings.separate.frame, settings.separate.hop) = (8192, 4096);
+        let e = bounds.check_settings(&settings).unwrap_err();
+        assert_eq!(e.field, "separate.frame");
+        assert!(e.message.contains("limits.max_frame"), "{e}");
+        settings.localize.frame = 1 << 16;
+        assert_eq!(
+            bounds.check_settings(&settings).unwrap_err().field,
+            "localize.frame"
+        );
+        let mut settings = PipelineConfig::default();
+        settings.separate.lifecycle.max_streams = 17;
+        let e = bounds.check_settings(&settings).unwrap_err();
+        assert_eq!(e.field, "separate.lifecycle.max_streams");
+        assert!(e.message.contains("limits.max_streams (16)"), "{e}");
+    }
+
+    #[test]
+    fn a_layout_is_checked_against_the_microphone_bounds() {
+        // Measurement-only arrays: the bounds count microphones whether or not they carry audio.
+        let array = |id: &str, mics: Vec<Vec3>| MicArray::new(id, mics, Vec::new()).unwrap();
+        let line = |n: usize, spacing: f64| -> Vec<Vec3> {
+            (0..n)
+                .map(|i| Vec3::new(spacing * i as f64, 0.0, 1.0))
+                .collect()
+        };
+        let layout = |arrays: Vec<MicArray>| Layout::new(16_000, 343.0, arrays, vec![], None);
+        let bounds = SizeBounds {
+            max_microphones: 8,
+            max_pair_span_m: 10.0,
+            ..SizeBounds::default()
+        };
+        // Two 4-microphone lines of 10 cm spacing: 8 microphones, pairs spanning 2 m in all.
+        let ok = layout(vec![array("a", line(4, 0.1)), array("b", line(4, 0.1))]).unwrap();
+        assert!(bounds.check_layout(&ok).is_ok());
+        // A ninth microphone: the array that passes the count is named.
+        let many = layout(vec![array("a", line(4, 0.1)), array("b", line(5, 0.1))]).unwrap();
+        let e = bounds.check_layout(&many).unwrap_err();
+        assert_eq!(e.field, "arrays[1].mics");
+        assert!(e.message.contains("9 microphones"), "{e}");
+        // Pairs spanning 10.5 m, and microphones so far apart that the distances overflow.
+        let wide = layout(vec![array("a", line(2, 0.5)), array("b", line(2, 10.0))]).unwrap();
+        let e = bounds.check_layout(&wide).unwrap_err();
+        assert_eq!(e.field, "arrays[1].mics");
+        assert!(e.message.contains("limits.max_pair_span_m"), "{e}");
+        let huge = vec![Vec3::new(-1e308, 0.0, 0.0), Vec3::new(1e308, 0.0, 0.0)];
+        let e = bounds
+            .check_layout(&layout(vec![array("a", huge)]).unwrap())
+            .unwrap_err();
+        assert_eq!(e.field, "arrays[0].mics");
+    }
+}
