@@ -1,7 +1,8 @@
 //! The bounds on sessions themselves: sessions nobody uses end by themselves
 //! (`limits.idle_timeout_s`): one never fed is removed, one fed and left finishes (its results
-//! stay readable), and one with a client connected runs on however quiet it is; and creations
-//! past `limits.session_creations_per_min` are refused.
+//! stay readable), and one with a client connected runs on however quiet it is; creations
+//! past `limits.session_creations_per_min` are refused; and sessions are admitted by their memory
+//! bound under `limits.max_memory_mb`, at creation and on every change that moves the bound.
 
 mod server_support;
 
@@ -102,5 +103,101 @@ async fn creations_past_the_rate_are_refused_and_the_server_goes_on() {
     assert_eq!(e.error.code, "rate_limited");
     assert!(e.error.message.contains("session_creations_per_min"));
     assert_eq!(server.registry.list().len(), 3);
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sessions_past_the_memory_budget_are_refused_and_the_others_go_on() {
+    let sc = scene("uca8", 1.0, 1, 3);
+    let capped = |streams: usize| {
+        let mut s = settings(1);
+        s.separate.lifecycle.max_streams = streams;
+        s
+    };
+    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams));
+    // Room for a session with a stream cap of 4 and one with a cap of 1, not for two of 4,
+    // nor for one of 16.
+    let budget = bound(4) + bound(1);
+    assert!(2 * bound(4) > budget && bound(16) > budget);
+    let server = server_with(|l| l.max_memory_mb = budget.div_ceil(1 << 20)).await;
+    let budget = budget.div_ceil(1 << 20) << 20;
+    assert!(2 * bound(4) > budget && bound(16) > budget, "rounding");
+    let first = server.create(&sc, capped(4), None).await;
+    let host = server.host();
+    let token = Some(first.token.as_str());
+    let info = http(
+        &host,
+        "GET",
+        &format!("/v1/sessions/{}", first.id),
+        token,
+        None,
+    )
+    .await
+    .unwrap();
+    let info: avsep::protocol::rest::SessionInfo = info.json().unwrap();
+    assert_eq!(info.memory_bound_bytes, bound(4) as u64);
+
+    let refused = |r: avsep::server::client::HttpResponse| {
+        assert_eq!(r.status, 503, "{}", r.text());
+        let e: avsep::protocol::rest::ErrorResponse = r.json().unwrap();
+        assert_eq!(e.error.code, "memory_budget");
+        assert!(
+            e.error.message.contains("limits.max_memory_mb"),
+            "{}",
+            e.error.message
+        );
+    };
+    let post = async |streams: usize| {
+        let body = serde_json::to_vec(&create_body(&sc.layout, Some(capped(streams)))).unwrap();
+        http(&host, "POST", "/v1/sessions", None, Some(&body)).await
+    };
+    refused(post(4).await.unwrap());
+    assert_eq!(server.registry.list().len(), 1);
+
+    // A settings change that raises the bound past the budget is refused and changes nothing;
+    // one that lowers it is applied and makes room for the second session.
+    let path = format!("/v1/sessions/{}/settings", first.id);
+    let patch = |streams: usize| {
+        let p = serde_json::json!({"separate": {"lifecycle": {"max_streams": streams}}});
+        serde_json::to_vec(&p).unwrap()
+    };
+    refused(
+        http(&host, "PATCH", &path, token, Some(&patch(16)))
+            .await
+            .unwrap(),
+    );
+    let session = server.registry.get(&first.id).unwrap();
+    assert_eq!(session.settings().separate.lifecycle.max_streams, 4);
+    let narrower = http(&host, "PATCH", &path, token, Some(&patch(1)))
+        .await
+        .unwrap();
+    assert_eq!(narrower.status, 200, "{}", narrower.text());
+    let second = post(4).await.unwrap();
+    assert_eq!(second.status, 201, "{}", second.text());
+    refused(post(1).await.unwrap());
+    let metrics = http(&host, "GET", "/metrics", None, None).await.unwrap();
+    let line = format!("avsep_sessions_memory_bound_bytes {}", bound(1) + bound(4));
+    assert!(
+        metrics.text().lines().any(|l| l == line),
+        "{}",
+        metrics.text()
+    );
+    // A recalibration that spreads the microphones grows the localiser's tables past the room
+    // left: refused, and the calibration stays.
+    let array = &sc.layout.arrays[0];
+    let centre = array.centroid();
+    let spread: Vec<[f64; 3]> = array
+        .mics
+        .iter()
+        .map(|m| {
+            let p = centre + (m - centre) * 30.0;
+            [p.x, p.y, p.z]
+        })
+        .collect();
+    let body = serde_json::to_vec(&serde_json::json!({ "mics": spread })).unwrap();
+    let put = format!("/v1/sessions/{}/arrays/{}", first.id, array.id);
+    refused(http(&host, "PUT", &put, token, Some(&body)).await.unwrap());
+    assert_eq!(session.layout().arrays[0].mics, array.mics);
+    assert_eq!(session.state(), SessionState::Running);
     server.stop().await;
 }

@@ -1,6 +1,8 @@
 //! What a session's pipeline takes in memory, measured by counting this thread's allocations:
-//! the everyday session stays a few megabytes, and the largest one the default size bounds admit
-//! stays within the figure `limits` documents, so a change that grows a per-bin table shows here.
+//! the everyday session stays a few megabytes, the largest one the default size bounds admit
+//! stays within the figure `limits` documents, and the footprint the server admits sessions by
+//! (`pipeline::footprint`, computed without building anything) never undercuts what a pipeline
+//! and its separator's streams hold.
 
 use std::alloc::{GlobalAlloc, Layout as AllocLayout, System};
 use std::cell::Cell;
@@ -8,7 +10,8 @@ use std::cell::Cell;
 use avsep::dsp::{Complex, MultiSpectrum};
 use avsep::geometry::{Layout, MicArray, Vec3};
 use avsep::label::Label;
-use avsep::pipeline::{Pipeline, PipelineConfig, SizeBounds};
+use avsep::pipeline::{Pipeline, PipelineConfig, SizeBounds, footprint};
+use avsep::separate::BeamformerKind;
 use avsep::separate::{Separator, Target};
 
 /// The system allocator, counting each thread's live bytes (tests run on parallel threads).
@@ -71,6 +74,15 @@ fn circle(m: usize, r: f64) -> Layout {
     Layout::new(16_000, 343.0, vec![array], vec![], None).expect("layout")
 }
 
+/// A line of `m` microphones `d` apart along x at 1 m height.
+fn line(m: usize, d: f64) -> Layout {
+    let mics = (0..m)
+        .map(|i| Vec3::new(3.0 + d * i as f64, 2.5, 1.0))
+        .collect();
+    let array = MicArray::new("a0", mics, (0..m).collect()).expect("array");
+    Layout::new(16_000, 343.0, vec![array], vec![], None).expect("layout")
+}
+
 #[test]
 fn an_everyday_session_takes_a_few_megabytes() {
     // The uca8 room's array: 8 microphones on a 5 cm radius, default settings.
@@ -110,7 +122,29 @@ fn the_largest_session_the_default_bounds_admit_is_bounded() {
             *v = Complex::new(((k * 7 + c) % 5) as f64 - 2.0, 0.5);
         }
     }
-    let targets: Vec<Target> = (0..bounds.max_streams + 4)
+    let (out, streams) = kept_by(|| separator.process(&spectra, &targets(bounds.max_streams + 4)));
+    assert_eq!(out.len(), bounds.max_streams, "the cap holds");
+    let bound = footprint(&layout, &cfg) as f64 / 1e6;
+    assert!(
+        (built + streams..1.3 * (built + streams)).contains(&bound),
+        "bound {bound:.0} MB against {:.0} MB held",
+        built + streams
+    );
+    let per_stream = streams / bounds.max_streams as f64;
+    println!(
+        "built {built:.0} MB; {streams:.0} MB for {} streams; bound {bound:.0} MB",
+        out.len()
+    );
+    assert!(
+        (10.0..100.0).contains(&per_stream),
+        "{per_stream:.1} MB a stream"
+    );
+    assert!(built + streams < 1600.0, "{:.0} MB", built + streams);
+}
+
+/// The targets of `n` labels on a circle around the arrays.
+fn targets(n: usize) -> Vec<Target> {
+    (0..n)
         .map(|i| {
             let a = std::f64::consts::TAU * i as f64 / 20.0;
             Target {
@@ -122,17 +156,58 @@ fn the_largest_session_the_default_bounds_admit_is_bounded() {
                 pitch: None,
             }
         })
-        .collect();
-    let (out, streams) = kept_by(|| separator.process(&spectra, &targets));
-    assert_eq!(out.len(), bounds.max_streams, "the cap holds");
-    let per_stream = streams / bounds.max_streams as f64;
-    println!(
-        "built {built:.0} MB; {streams:.0} MB for {} streams",
-        out.len()
-    );
-    assert!(
-        (10.0..100.0).contains(&per_stream),
-        "{per_stream:.1} MB a stream"
-    );
-    assert!(built + streams < 1600.0, "{:.0} MB", built + streams);
+        .collect()
+}
+
+/// Over arrays of 2 to 32 microphones, both shapes, frames, beamformers and stream caps: the
+/// footprint is at least what the built pipeline and its separator at the cap hold, and not
+/// wildly more (a bound too loose would refuse sessions a server could hold).
+#[test]
+fn the_footprint_never_undercuts_what_a_pipeline_holds() {
+    let kinds = [
+        BeamformerKind::Gsc,
+        BeamformerKind::Mvdr,
+        BeamformerKind::NullSteering,
+    ];
+    let cases = [
+        (line(2, 0.2), 2048, 1024, 0, 4),
+        (line(6, 0.04), 2048, 1024, 0, 16),
+        (line(16, 0.05), 1024, 2048, 1, 8),
+        (circle(4, 0.05), 4096, 1024, 2, 16),
+        (circle(8, 0.05), 2048, 1024, 0, 16),
+        (circle(8, 0.05), 2048, 1024, 0, 3),
+        (circle(8, 1.0), 1024, 512, 1, 12),
+        (circle(16, 0.1), 2048, 4096, 0, 16),
+        (circle(32, 0.1), 2048, 1024, 0, 6),
+    ];
+    for (layout, lf, sf, kind, cap) in cases {
+        let mut cfg = PipelineConfig::default();
+        cfg.localize.frame = lf;
+        (cfg.separate.frame, cfg.separate.hop) = (sf, sf / 2);
+        cfg.separate.beamformer = kinds[kind];
+        cfg.separate.lifecycle.max_streams = cap;
+        let (pipeline, built) = kept_by(|| Pipeline::new(layout.clone(), cfg.clone(), 1));
+        assert!(pipeline.is_ok());
+        let m = layout.channel_count();
+        let (separator, _) = kept_by(|| Separator::new(&layout, &cfg.separate));
+        let mut separator = separator.expect("separator");
+        let spectra = MultiSpectrum::zeros(m, sf / 2 + 1);
+        let (out, streams) = kept_by(|| separator.process(&spectra, &targets(cap + 2)));
+        assert_eq!(out.len(), cap);
+        let held = built + streams;
+        let bound = footprint(&layout, &cfg) as f64 / 1e6;
+        let case = format!(
+            "{m} microphones, frames {lf}/{sf}, {:?}, {cap} streams",
+            kinds[kind]
+        );
+        println!("{case}: {held:.2} MB held, bound {bound:.2} MB");
+        assert!(
+            bound >= held,
+            "{case}: bound {bound:.2} MB under {held:.2} MB held"
+        );
+        assert!(
+            bound <= 2.0 * held + 4.0,
+            "{case}: bound {bound:.2} MB, {held:.2} MB held"
+        );
+    }
 }

@@ -20,7 +20,7 @@ use super::sliding_max::sliding_max;
 use super::subband_lags::SubbandLags;
 
 /// Extra lag range (samples) tabulated beyond d_ab / c, so lookups at the physical limit interpolate.
-const LAG_MARGIN_SAMPLES: f64 = 1.0;
+pub(super) const LAG_MARGIN_SAMPLES: f64 = 1.0;
 
 /// One microphone pair and where its fine GCC table lives.
 #[derive(Debug, Clone, Copy)]

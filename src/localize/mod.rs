@@ -10,6 +10,7 @@
 mod activity;
 mod config;
 mod directions;
+mod footprint;
 mod gcc;
 mod geodesic;
 mod lag_kernel;
@@ -30,6 +31,7 @@ pub use config::{
     ActivityConfig, ConfigError, DirectionConfig, LocalizerConfig, PeakConfig, PositionConfig,
     SearchMode,
 };
+pub use footprint::footprint;
 
 use activity::ActivityTracker;
 use directions::DirectionSearch;

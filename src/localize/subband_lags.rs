@@ -16,7 +16,7 @@ use crate::dsp::Complex;
 
 /// Lags summed together in [`SubbandLags::rebuild`]: one AVX-512 register of f64 (two AVX2
 /// ones), few enough that the sums stay in registers.
-const LAG_BLOCK: usize = 8;
+pub(super) const LAG_BLOCK: usize = 8;
 
 /// Sub-band lag contributions of every pair, with their bin norms.
 pub(crate) struct SubbandLags {

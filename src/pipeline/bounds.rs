@@ -2,7 +2,8 @@
 //! frames and the labels it separates at once. The per-bin tables of the localiser and the
 //! separator grow with these, so a layout or settings past them would take the machine's memory
 //! before the first sample. The server's `limits` carry these bounds for every session, and
-//! `avsep process` applies the same defaults to a scene folder.
+//! `avsep process` applies the same defaults to a scene folder. [`footprint`] bounds what one
+//! pipeline takes in memory, so the server can admit sessions by a memory budget.
 
 use crate::geometry::{GeometryError, Layout};
 
@@ -110,6 +111,42 @@ impl SizeBounds {
         }
         Ok(())
     }
+}
+
+/// Memory a session's pipeline state takes besides the stages' tables, at most: the tracker's
+/// hypotheses and the step's buffers (an everyday session's pipeline measured 0.5 MB built).
+const STATE_ALLOWANCE: usize = 2 << 20;
+
+/// Bytes a pipeline for `layout` with `cfg` takes at most, with every label its stream cap
+/// allows separated: the localiser's tables, the separator's with its streams, and the audio
+/// buffers. It is computed from the sizes the stages are built with, without building them;
+/// `tests/session_memory.rs` checks that it never undercuts what a pipeline holds.
+pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> usize {
+    const F64: usize = 8;
+    const COMPLEX: usize = 16;
+    let channels = layout.channel_count();
+    if channels == 0 {
+        return STATE_ALLOWANCE;
+    }
+    let lf = cfg.localize.frame;
+    let localizer = if cfg.audio_measurements.uses_localizer() {
+        crate::localize::footprint(layout, &cfg.localize) + channels * (lf / 2 + 1) * COMPLEX
+    } else {
+        0
+    };
+    let (sf, streams) = (cfg.separate.frame, cfg.separate.lifecycle.max_streams);
+    let separator = if cfg.separation {
+        crate::separate::footprint(layout, &cfg.separate, streams)
+            + channels * (sf / 2 + 1) * COMPLEX
+            // Each stream's overlap-add buffers.
+            + streams * 2 * sf * F64
+    } else {
+        0
+    };
+    // The audio history holds the longer frame and four steps of every channel.
+    let step = (cfg.step_s * f64::from(layout.sample_rate)).ceil() as usize;
+    let history = channels * (lf.max(sf) + 4 * step) * 2 * F64;
+    localizer + separator + history + 4 * lf.max(sf) * F64 + STATE_ALLOWANCE
 }
 
 #[cfg(test)]

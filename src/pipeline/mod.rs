@@ -18,7 +18,7 @@ pub mod speaking;
 pub mod stages;
 
 pub use audio_history::AudioHistory;
-pub use bounds::SizeBounds;
+pub use bounds::{SizeBounds, footprint};
 pub use clock::StepClock;
 pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, PipelineConfig};
 pub use events::{EventSink, PipelineEvent};

@@ -24,6 +24,7 @@ pub mod cholesky;
 mod config;
 pub mod demix;
 pub mod direct_power;
+mod footprint;
 pub mod harmonic;
 pub mod lifecycle;
 pub mod mvdr;
@@ -39,6 +40,7 @@ pub use config::{
     AdaptationConfig, BeamformerKind, ConfigError, HarmonicConfig, LifecycleConfig, MicSelection,
     MvdrConfig, PostFilterConfig, PostFilterKind, PostFilterTarget, RlsConfig, SeparatorConfig,
 };
+pub use footprint::footprint;
 pub use separator::Separator;
 pub use steering::Steering;
 

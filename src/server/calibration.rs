@@ -6,7 +6,7 @@ use axum::Json;
 use axum::extract::{Path, RawQuery, Request, State};
 use axum::http::{HeaderMap, StatusCode};
 
-use crate::pipeline::PipelineConfig;
+use crate::pipeline::{PipelineConfig, footprint};
 use crate::protocol::rest::{ArrayCalibration, CameraCalibration, SessionInfo};
 use crate::scene::convert::{array_from_file, camera_from_file, layout_from_file, layout_to_file};
 use crate::scene::format::SceneFile;
@@ -56,6 +56,7 @@ fn running(s: &SessionHandle) -> Result<(), ApiError> {
         (status = 200, description = "Applied; the session with its new calibration", body = SessionInfo),
         (status = 404, description = "Unknown session or array", body = crate::protocol::rest::ErrorResponse),
         (status = 409, description = "Session not running, or a change that cannot happen live (channels, microphone count)", body = crate::protocol::rest::ErrorResponse),
+        (status = 503, description = "The new layout's memory bound would pass limits.max_memory_mb (`memory_budget`)", body = crate::protocol::rest::ErrorResponse),
         (status = 422, description = "Invalid positions; `field` names them", body = crate::protocol::rest::ErrorResponse),
         (status = 429, description = "The session's queue is full", body = crate::protocol::rest::ErrorResponse),
     ),
@@ -109,6 +110,8 @@ pub(super) async fn put_array(
         let e = crate::geometry::GeometryError::new("mics", e.message);
         ApiError::geometry(e, "")
     })?;
+    app.registry
+        .admit_memory(footprint(&layout, &s.settings()), Some(s.id()))?;
     s.recalibrate(layout).await?;
     Ok(Json(s.info()))
 }
@@ -192,6 +195,7 @@ pub(super) async fn get_settings(
     responses(
         (status = 200, description = "Applied; the settings now in force", body = Object),
         (status = 409, description = "A setting that cannot change on a running session (`not_live`), or the session is not running", body = crate::protocol::rest::ErrorResponse),
+        (status = 503, description = "The new settings' memory bound would pass limits.max_memory_mb (`memory_budget`)", body = crate::protocol::rest::ErrorResponse),
         (status = 422, description = "Unknown field or value out of range; `field` names it", body = crate::protocol::rest::ErrorResponse),
         (status = 429, description = "The session's queue is full", body = crate::protocol::rest::ErrorResponse),
     ),
@@ -225,6 +229,8 @@ pub(super) async fn patch_settings(
     s.limits()
         .check_settings(&settings)
         .map_err(|e| ApiError::config(e, ""))?;
+    app.registry
+        .admit_memory(footprint(&s.layout(), &settings), Some(s.id()))?;
     s.configure(settings).await?;
     Ok(Json(s.settings()))
 }

@@ -50,12 +50,8 @@ impl Default for ServerConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Limits {
-    /// Sessions the server holds at once (running or finished but not yet deleted). Size it
-    /// with the memory a session may take: an everyday one (8 microphones, default settings)
-    /// builds in about 3 MB, but the largest the default size limits admit (64 microphones,
-    /// 4096-sample frames, 16 separated labels) measured 0.26 GB built and 1.15 GB more for
-    /// its 16 streams (`tests/session_memory.rs`); lower those limits where clients may create
-    /// sessions freely.
+    /// Sessions the server holds at once (running or finished but not yet deleted); what
+    /// their pipelines may take together is bounded by `max_memory_mb`.
     pub max_sessions: usize,
     /// Stream clients connected to one session at once.
     pub max_clients_per_session: usize,
@@ -97,6 +93,12 @@ pub struct Limits {
     /// the rate are still counted in the metrics; the next one published says how many were
     /// held back. Without it anyone on the network could flood the session's outputs.
     pub zenoh_refusals_per_s: f64,
+    /// Memory (MB) the running sessions' pipelines may take together, at most, each counted by
+    /// the bound its layout and settings give with every stream its cap allows
+    /// (`memory_bound_bytes` in its info; an everyday 8-microphone session counts about 45 MB,
+    /// the largest the default limits admit about 1.6 GB). A creation, recalibration or
+    /// settings change past it is refused with 503 `memory_budget`; 0 sets no budget.
+    pub max_memory_mb: usize,
     /// Seconds a running session may go without accepted input and without a connected stream
     /// client before it is ended (`idle`); 0 never ends one. One that never received input
     /// is removed at once; one that did finishes and stays readable for `finished_ttl_s`.
@@ -224,6 +226,7 @@ impl Default for Limits {
             max_frame: bounds.max_frame,
             max_streams: bounds.max_streams,
             zenoh_refusals_per_s: 10.0,
+            max_memory_mb: 4096,
             idle_timeout_s: 900.0,
             session_creations_per_min: 60.0,
         }

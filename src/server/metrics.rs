@@ -67,6 +67,7 @@ struct ReadGauges {
     queue_depth: IntGauge,
     separation_queue_depth: IntGauge,
     live_tracks: IntGauge,
+    memory_bound_bytes: IntGauge,
     resident_bytes: IntGauge,
     cpu_seconds: Gauge,
     real_time_factor: Gauge,
@@ -85,6 +86,8 @@ pub struct Snapshot {
     pub separation_queue_depth: i64,
     /// Tracks that exist now, summed over sessions.
     pub live_tracks: i64,
+    /// Memory the running sessions' pipelines may take at most, summed (bytes).
+    pub memory_bound_bytes: i64,
 }
 
 fn latency_buckets() -> Vec<f64> {
@@ -168,6 +171,11 @@ impl ReadGauges {
                 "Steps of separation work waiting for their sessions' separation threads, summed over sessions",
             )?,
             live_tracks: IntGauge::new("avsep_live_tracks", "Tracks that exist now")?,
+            memory_bound_bytes: IntGauge::new(
+                "avsep_sessions_memory_bound_bytes",
+                "Memory the running sessions' pipelines may take at most, summed: what \
+                 limits.max_memory_mb bounds",
+            )?,
             resident_bytes: IntGauge::new(
                 "avsep_process_resident_memory_bytes",
                 "Resident memory of the server process",
@@ -215,6 +223,7 @@ impl ServerMetrics {
             Box::new(self.gauges.separation_queue_depth.clone()),
             Box::new(self.counters.separation_waits.clone()),
             Box::new(self.gauges.live_tracks.clone()),
+            Box::new(self.gauges.memory_bound_bytes.clone()),
             Box::new(self.gauges.resident_bytes.clone()),
             Box::new(self.gauges.cpu_seconds.clone()),
             Box::new(self.gauges.real_time_factor.clone()),
@@ -248,6 +257,7 @@ impl ServerMetrics {
             .separation_queue_depth
             .set(snap.separation_queue_depth);
         self.gauges.live_tracks.set(snap.live_tracks);
+        self.gauges.memory_bound_bytes.set(snap.memory_bound_bytes);
         self.gauges
             .resident_bytes
             .set(resident_memory_bytes().unwrap_or(0) as i64);

@@ -1,6 +1,6 @@
 //! The sessions a server holds: creation from a REST body (geometry and settings checked, the
-//! pipeline built, at a bounded rate), lookup, removal, expiry of ended and idle sessions, and
-//! draining at shutdown.
+//! pipeline admitted by its memory bound and built, one at a time and at a bounded rate),
+//! lookup, removal, expiry of ended and idle sessions, and draining at shutdown.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use axum::http::StatusCode;
 
-use crate::pipeline::Pipeline;
+use crate::pipeline::{Pipeline, footprint};
 use crate::protocol::rest::{CreateSession, SessionState};
 use crate::scene::convert::{geometry_file, layout_from_file};
 
@@ -34,6 +34,9 @@ pub struct Registry {
     draining: AtomicBool,
     /// Session creations admitted at `limits.session_creations_per_min`.
     creations: Mutex<TokenBucket>,
+    /// Held while a session's pipeline is admitted and built, so that concurrent creations
+    /// neither pass the memory budget together nor build past it at once.
+    building: Mutex<()>,
     /// The built-in demo session, when one was started (`avsep serve --demo`).
     demo: OnceLock<DemoAccess>,
 }
@@ -44,6 +47,7 @@ impl Registry {
         let per_min = config.limits.session_creations_per_min;
         Self {
             creations: Mutex::new(TokenBucket::new(per_min / 60.0, per_min)),
+            building: Mutex::new(()),
             sessions: RwLock::new(BTreeMap::new()),
             hooks: RwLock::new(Vec::new()),
             config,
@@ -155,6 +159,9 @@ impl Registry {
             .limits
             .check_settings(&settings)
             .map_err(|e| ApiError::config(e, "settings"))?;
+        // A poisoned lock only means another build panicked; the budget it guards is intact.
+        let _building = self.building.lock().unwrap_or_else(|e| e.into_inner());
+        self.admit_memory(footprint(&layout, &settings), None)?;
         let id = auth::new_session_id();
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
         let seed = settings
@@ -277,6 +284,41 @@ impl Registry {
         }
     }
 
+    /// Memory the pipelines of the sessions held may take at most, leaving out `except`'s.
+    pub fn memory_in_use(&self, except: Option<&str>) -> usize {
+        self.list()
+            .iter()
+            .filter(|s| Some(s.id()) != except)
+            .map(|s| s.memory_bound())
+            .sum()
+    }
+
+    /// Admits a pipeline that may take `bytes` (in place of session `except`'s, for a change of
+    /// its calibration or settings) under `limits.max_memory_mb`, refusing it (503
+    /// `memory_budget`) past the budget.
+    pub fn admit_memory(&self, bytes: usize, except: Option<&str>) -> Result<(), ApiError> {
+        let budget = self.config.limits.max_memory_mb;
+        if budget == 0 {
+            return Ok(());
+        }
+        let in_use = self.memory_in_use(except);
+        if in_use.saturating_add(bytes) <= budget.saturating_mul(1 << 20) {
+            return Ok(());
+        }
+        let mb = |b: usize| b.div_ceil(1 << 20);
+        Err(ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "memory_budget",
+            format!(
+                "this session may take up to {} MB and the others up to {} MB, more than \
+                 limits.max_memory_mb ({budget} MB) together; fewer microphones, smaller frames \
+                 or a lower separate.lifecycle.max_streams take less",
+                mb(bytes),
+                mb(in_use)
+            ),
+        ))
+    }
+
     /// Gauges for `/metrics`.
     pub fn snapshot(&self) -> Snapshot {
         let mut snap = Snapshot::default();
@@ -287,6 +329,7 @@ impl Registry {
             snap.queue_depth += m.queue_depth as i64;
             snap.separation_queue_depth += m.separation_queue_depth as i64;
             snap.live_tracks += m.live_tracks as i64;
+            snap.memory_bound_bytes += s.memory_bound() as i64;
         }
         snap
     }

@@ -78,7 +78,7 @@ pub(super) fn session_access(
         (status = 413, description = "Body larger than limits.max_body_bytes", body = crate::protocol::rest::ErrorResponse),
         (status = 422, description = "Invalid geometry or settings; `field` names it", body = crate::protocol::rest::ErrorResponse),
         (status = 429, description = "More creations than limits.session_creations_per_min (`rate_limited`)", body = crate::protocol::rest::ErrorResponse),
-        (status = 503, description = "At limits.max_sessions, or shutting down", body = crate::protocol::rest::ErrorResponse),
+        (status = 503, description = "At limits.max_sessions (`at_capacity`), past limits.max_memory_mb (`memory_budget`), or shutting down", body = crate::protocol::rest::ErrorResponse),
     ),
     security((), ("bearer" = []))
 )]

@@ -67,6 +67,18 @@ impl Session {
             next_sample: self.next_sample(),
             clients: self.clients(),
             live_labels: self.live_labels(),
+            memory_bound_bytes: self.memory_bound() as u64,
+        }
+    }
+
+    /// Memory the session's pipeline may take at most ([`crate::pipeline::footprint`]); none
+    /// once it has ended.
+    pub fn memory_bound(&self) -> usize {
+        match self.state() {
+            SessionState::Running | SessionState::Finishing => {
+                crate::pipeline::footprint(&self.layout(), &self.settings())
+            }
+            SessionState::Finished | SessionState::Failed => 0,
         }
     }
 
