@@ -32,6 +32,10 @@ pub struct ServeArgs {
     /// Most sessions held at once.
     #[arg(long, env = "AVSEP_MAX_SESSIONS")]
     pub max_sessions: Option<usize>,
+    /// Memory (MB) the running sessions' pipelines may take together, by their bounds; 0 for
+    /// no budget.
+    #[arg(long, env = "AVSEP_MAX_MEMORY_MB")]
+    pub max_memory_mb: Option<usize>,
     /// Inbound messages queued per session before `queue_full`.
     #[arg(long, env = "AVSEP_QUEUE_DEPTH")]
     pub queue_depth: Option<usize>,
@@ -83,6 +87,9 @@ impl ServeArgs {
         }
         if let Some(n) = self.max_sessions {
             cfg.limits.max_sessions = n;
+        }
+        if let Some(n) = self.max_memory_mb {
+            cfg.limits.max_memory_mb = n;
         }
         if let Some(n) = self.queue_depth {
             cfg.limits.queue_depth = n;
@@ -196,4 +203,29 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
     })?;
     tracing::info!("stopped");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        serve: ServeArgs,
+    }
+
+    #[test]
+    fn flags_override_the_limits_that_size_a_server() {
+        let cli = Cli::try_parse_from(["avsep", "--max-sessions", "3", "--max-memory-mb", "0"]);
+        let cfg = cli.unwrap().serve.settings().unwrap();
+        assert_eq!((cfg.limits.max_sessions, cfg.limits.max_memory_mb), (3, 0));
+        let cfg = Cli::try_parse_from(["avsep"])
+            .unwrap()
+            .serve
+            .settings()
+            .unwrap();
+        assert_eq!(cfg.limits, crate::server::Limits::default());
+    }
 }

@@ -150,6 +150,14 @@ def test_one_config_path_everywhere() -> None:
     assert f"ExecStart=/usr/local/bin/avsep serve --config {CONFIG_PATH}" in unit
 
 
+def test_the_memory_budget_fits_the_container() -> None:
+    budget_mib = config()["limits"]["max_memory_mb"]
+    limit = avsep_container()["resources"]["limits"]["memory"]
+    units = {"Mi": 1, "Gi": 1024}
+    limit_mib = int(limit[:-2]) * units[limit[-2:]]
+    assert 0 < budget_mib <= 0.8 * limit_mib, "leave the process room beyond the pipelines"
+
+
 def test_health_endpoints() -> None:
     c = avsep_container()
     assert c["readinessProbe"]["httpGet"]["path"] == "/readyz"
