@@ -201,3 +201,55 @@ async fn sessions_past_the_memory_budget_are_refused_and_the_others_go_on() {
     assert_eq!(session.state(), SessionState::Running);
     server.stop().await;
 }
+
+/// Two sessions ask at once to raise their stream caps, with room for one: one change is
+/// admitted and the other refused, whichever comes first (an admitted change counts for its
+/// session from its admission until it is in force).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_changes_cannot_pass_the_memory_budget_together() {
+    let sc = scene("uca8", 1.0, 1, 3);
+    let capped = |streams: usize| {
+        let mut s = settings(1);
+        s.separate.lifecycle.max_streams = streams;
+        s
+    };
+    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams));
+    let budget = (bound(1) + bound(8) + (1 << 20)) >> 20;
+    assert!(2 * bound(8) > budget << 20);
+    let server = server_with(|l| l.max_memory_mb = budget).await;
+    let a = server.create(&sc, capped(1), None).await;
+    let b = server.create(&sc, capped(1), None).await;
+    let host = server.host();
+    let body =
+        serde_json::to_vec(&serde_json::json!({"separate": {"lifecycle": {"max_streams": 8}}}))
+            .unwrap();
+    let patch = |s: &avsep::protocol::rest::SessionCreated| {
+        let path = format!("/v1/sessions/{}/settings", s.id);
+        let (host, body, token) = (host.clone(), body.clone(), s.token.clone());
+        tokio::spawn(async move {
+            http(&host, "PATCH", &path, Some(&token), Some(&body))
+                .await
+                .unwrap()
+                .status
+        })
+    };
+    let (ra, rb) = (patch(&a), patch(&b));
+    let mut statuses = [ra.await.unwrap(), rb.await.unwrap()];
+    statuses.sort_unstable();
+    assert_eq!(statuses, [200, 503]);
+    let caps: Vec<usize> = [&a, &b]
+        .iter()
+        .map(|s| {
+            server
+                .registry
+                .get(&s.id)
+                .unwrap()
+                .settings()
+                .separate
+                .lifecycle
+                .max_streams
+        })
+        .collect();
+    assert!(caps == [1, 8] || caps == [8, 1], "{caps:?}");
+    server.stop().await;
+}

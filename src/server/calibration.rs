@@ -110,8 +110,9 @@ pub(super) async fn put_array(
         let e = crate::geometry::GeometryError::new("mics", e.message);
         ApiError::geometry(e, "")
     })?;
-    app.registry
-        .admit_memory(footprint(&layout, &s.settings()), Some(s.id()))?;
+    let _admitted = app
+        .registry
+        .admit_memory(s.id(), footprint(&layout, &s.settings()))?;
     s.recalibrate(layout).await?;
     Ok(Json(s.info()))
 }
@@ -229,8 +230,9 @@ pub(super) async fn patch_settings(
     s.limits()
         .check_settings(&settings)
         .map_err(|e| ApiError::config(e, ""))?;
-    app.registry
-        .admit_memory(footprint(&s.layout(), &settings), Some(s.id()))?;
+    let _admitted = app
+        .registry
+        .admit_memory(s.id(), footprint(&s.layout(), &settings))?;
     s.configure(settings).await?;
     Ok(Json(s.settings()))
 }

@@ -34,9 +34,12 @@ pub struct Registry {
     draining: AtomicBool,
     /// Session creations admitted at `limits.session_creations_per_min`.
     creations: Mutex<TokenBucket>,
-    /// Held while a session's pipeline is admitted and built, so that concurrent creations
-    /// neither pass the memory budget together nor build past it at once.
+    /// Held while a session's pipeline is built, so that concurrent creations do not build past
+    /// the memory budget at once.
     building: Mutex<()>,
+    /// Memory bounds admitted for sessions being created or changed, by session id, until the
+    /// session or change is in force (see [`Registry::admit_memory`]).
+    reserved: Mutex<BTreeMap<String, usize>>,
     /// The built-in demo session, when one was started (`avsep serve --demo`).
     demo: OnceLock<DemoAccess>,
 }
@@ -48,6 +51,7 @@ impl Registry {
         Self {
             creations: Mutex::new(TokenBucket::new(per_min / 60.0, per_min)),
             building: Mutex::new(()),
+            reserved: Mutex::new(BTreeMap::new()),
             sessions: RwLock::new(BTreeMap::new()),
             hooks: RwLock::new(Vec::new()),
             config,
@@ -159,10 +163,11 @@ impl Registry {
             .limits
             .check_settings(&settings)
             .map_err(|e| ApiError::config(e, "settings"))?;
-        // A poisoned lock only means another build panicked; the budget it guards is intact.
+        // One build at a time bounds what building takes at once. A poisoned lock only means
+        // another build panicked.
         let _building = self.building.lock().unwrap_or_else(|e| e.into_inner());
-        self.admit_memory(footprint(&layout, &settings), None)?;
         let id = auth::new_session_id();
+        let _admitted = self.admit_memory(&id, footprint(&layout, &settings))?;
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
         let seed = settings
             .seed
@@ -286,37 +291,63 @@ impl Registry {
 
     /// Memory the pipelines of the sessions held may take at most, leaving out `except`'s.
     pub fn memory_in_use(&self, except: Option<&str>) -> usize {
-        self.list()
-            .iter()
-            .filter(|s| Some(s.id()) != except)
-            .map(|s| s.memory_bound())
-            .sum()
+        match self.reserved.lock() {
+            Ok(r) => self.in_use_with(&r, except),
+            Err(e) => self.in_use_with(&e.into_inner(), except),
+        }
     }
 
-    /// Admits a pipeline that may take `bytes` (in place of session `except`'s, for a change of
-    /// its calibration or settings) under `limits.max_memory_mb`, refusing it (503
-    /// `memory_budget`) past the budget.
-    pub fn admit_memory(&self, bytes: usize, except: Option<&str>) -> Result<(), ApiError> {
+    /// [`Registry::memory_in_use`] with the reservations `reserved`: a session counts at the
+    /// larger of its bound and its reservation, a session being created at its reservation.
+    fn in_use_with(&self, reserved: &BTreeMap<String, usize>, except: Option<&str>) -> usize {
+        let sessions = self.list();
+        let held: usize = sessions
+            .iter()
+            .filter(|s| Some(s.id()) != except)
+            .map(|s| {
+                s.memory_bound()
+                    .max(reserved.get(s.id()).copied().unwrap_or(0))
+            })
+            .sum();
+        let creating: usize = reserved
+            .iter()
+            .filter(|(id, _)| {
+                Some(id.as_str()) != except && !sessions.iter().any(|s| s.id() == *id)
+            })
+            .map(|(_, b)| b)
+            .sum();
+        held + creating
+    }
+
+    /// Admits the pipeline of session `id` (being created, or changing its calibration or
+    /// settings) that may take `bytes`, in place of its bound in force, under
+    /// `limits.max_memory_mb`: refused (503 `memory_budget`) past the budget, else reserved
+    /// until the returned guard is dropped, once the session or change is in force (or failed).
+    /// The check and the reservation are one step, so concurrent admissions cannot pass the
+    /// budget together.
+    pub fn admit_memory(&self, id: &str, bytes: usize) -> Result<MemoryReservation<'_>, ApiError> {
         let budget = self.config.limits.max_memory_mb;
-        if budget == 0 {
-            return Ok(());
+        let mut reserved = self.reserved.lock().unwrap_or_else(|e| e.into_inner());
+        let in_use = self.in_use_with(&reserved, Some(id));
+        if budget > 0 && in_use.saturating_add(bytes) > budget.saturating_mul(1 << 20) {
+            let mb = |b: usize| b.div_ceil(1 << 20);
+            return Err(ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "memory_budget",
+                format!(
+                    "this session may take up to {} MB and the others up to {} MB, more than \
+                     limits.max_memory_mb ({budget} MB) together; fewer microphones, smaller \
+                     frames or a lower separate.lifecycle.max_streams take less",
+                    mb(bytes),
+                    mb(in_use)
+                ),
+            ));
         }
-        let in_use = self.memory_in_use(except);
-        if in_use.saturating_add(bytes) <= budget.saturating_mul(1 << 20) {
-            return Ok(());
-        }
-        let mb = |b: usize| b.div_ceil(1 << 20);
-        Err(ApiError::new(
-            StatusCode::SERVICE_UNAVAILABLE,
-            "memory_budget",
-            format!(
-                "this session may take up to {} MB and the others up to {} MB, more than \
-                 limits.max_memory_mb ({budget} MB) together; fewer microphones, smaller frames \
-                 or a lower separate.lifecycle.max_streams take less",
-                mb(bytes),
-                mb(in_use)
-            ),
-        ))
+        reserved.insert(id.to_owned(), bytes);
+        Ok(MemoryReservation {
+            registry: self,
+            id: id.to_owned(),
+        })
     }
 
     /// Gauges for `/metrics`.
@@ -355,5 +386,23 @@ impl Registry {
             unfinished = left,
             "sessions drained"
         );
+    }
+}
+
+/// A session's admitted memory bound, counted for it until dropped (see
+/// [`Registry::admit_memory`]).
+pub struct MemoryReservation<'a> {
+    registry: &'a Registry,
+    id: String,
+}
+
+impl Drop for MemoryReservation<'_> {
+    fn drop(&mut self) {
+        let mut r = self
+            .registry
+            .reserved
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        r.remove(&self.id);
     }
 }
