@@ -232,6 +232,16 @@ async fn bad_bodies_are_named(rest: &Rest) {
         r.text()
     );
     assert!(err(&r).message.contains("limits.max_frame"), "{}", r.text());
+    // A frame no pipeline can use is named before anything is sized from it.
+    let r = rest
+        .post_edited(|b| b["settings"] = serde_json::json!({"localize": {"frame": 0}}))
+        .await;
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (422, Some("settings.localize.frame")),
+        "{}",
+        r.text()
+    );
     let r = rest.post(Some(rest.key), &vec![b' '; 70 << 10]).await;
     assert_eq!((r.status, err(&r).code.as_str()), (413, "too_large"));
     geometry_beyond_the_limits_is_named(rest).await;
@@ -379,6 +389,14 @@ async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::sc
     assert_eq!(
         (r.status, err(&r).field.as_deref()),
         (409, Some("separate.frame"))
+    );
+    // A frame no pipeline can use has no memory bound to admit: the change refuses it.
+    let r = patch(serde_json::json!({"localize": {"frame": 0}})).await;
+    assert_eq!(
+        (r.status, err(&r).field.as_deref()),
+        (409, Some("localize.frame")),
+        "{}",
+        r.text()
     );
     let r = patch(serde_json::json!({"camera_wait_s": 9.0})).await;
     assert_eq!(

@@ -114,7 +114,7 @@ async fn sessions_past_the_memory_budget_are_refused_and_the_others_go_on() {
         s.separate.lifecycle.max_streams = streams;
         s
     };
-    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams));
+    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams)).unwrap();
     // Room for a session with a stream cap of 4 and one with a cap of 1, not for two of 4,
     // nor for one of 16.
     let budget = bound(4) + bound(1);
@@ -213,7 +213,7 @@ async fn concurrent_changes_cannot_pass_the_memory_budget_together() {
         s.separate.lifecycle.max_streams = streams;
         s
     };
-    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams));
+    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams)).unwrap();
     let budget = (bound(1) + bound(8) + (1 << 20)) >> 20;
     assert!(2 * bound(8) > budget << 20);
     let server = server_with(|l| l.max_memory_mb = budget).await;

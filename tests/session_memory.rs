@@ -124,7 +124,7 @@ fn the_largest_session_the_default_bounds_admit_is_bounded() {
     }
     let (out, streams) = kept_by(|| separator.process(&spectra, &targets(bounds.max_streams + 4)));
     assert_eq!(out.len(), bounds.max_streams, "the cap holds");
-    let bound = footprint(&layout, &cfg) as f64 / 1e6;
+    let bound = footprint(&layout, &cfg).unwrap() as f64 / 1e6;
     assert!(
         (built + streams..1.3 * (built + streams)).contains(&bound),
         "bound {bound:.0} MB against {:.0} MB held",
@@ -195,7 +195,7 @@ fn the_footprint_never_undercuts_what_a_pipeline_holds() {
         let (out, streams) = kept_by(|| separator.process(&spectra, &targets(cap + 2)));
         assert_eq!(out.len(), cap);
         let held = built + streams;
-        let bound = footprint(&layout, &cfg) as f64 / 1e6;
+        let bound = footprint(&layout, &cfg).unwrap() as f64 / 1e6;
         let case = format!(
             "{m} microphones, frames {lf}/{sf}, {:?}, {cap} streams",
             kinds[kind]

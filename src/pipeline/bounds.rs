@@ -118,24 +118,31 @@ impl SizeBounds {
 const STATE_ALLOWANCE: usize = 2 << 20;
 
 /// Bytes a pipeline for `layout` with `cfg` takes at most, with every label its stream cap
-/// allows separated: the localiser's tables, the separator's with its streams, and the audio
+/// allows separated (an error naming the field for settings no pipeline could be built with): the localiser's tables, the separator's with its streams, and the audio
 /// buffers. It is computed from the sizes the stages are built with, without building them;
 /// `tests/session_memory.rs` checks that it never undercuts what a pipeline holds.
-pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> usize {
+pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> Result<usize, ConfigError> {
     const F64: usize = 8;
     const COMPLEX: usize = 16;
+    // The sizes below are read from the settings of the stages a pipeline builds, which are
+    // checked first, as building them would.
+    cfg.validate()?;
     let channels = layout.channel_count();
     if channels == 0 {
-        return STATE_ALLOWANCE;
+        return Ok(STATE_ALLOWANCE);
     }
     let lf = cfg.localize.frame;
     let localizer = if cfg.audio_measurements.uses_localizer() {
+        cfg.localize
+            .validate(layout)
+            .map_err(|e| e.within("localize"))?;
         crate::localize::footprint(layout, &cfg.localize) + channels * (lf / 2 + 1) * COMPLEX
     } else {
         0
     };
     let (sf, streams) = (cfg.separate.frame, cfg.separate.lifecycle.max_streams);
     let separator = if cfg.separation {
+        cfg.separate.validate().map_err(|e| e.within("separate"))?;
         crate::separate::footprint(layout, &cfg.separate, streams)
             + channels * (sf / 2 + 1) * COMPLEX
             // Each stream's overlap-add buffers.
@@ -146,7 +153,7 @@ pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> usize {
     // The audio history holds the longer frame and four steps of every channel.
     let step = (cfg.step_s * f64::from(layout.sample_rate)).ceil() as usize;
     let history = channels * (lf.max(sf) + 4 * step) * 2 * F64;
-    localizer + separator + history + 4 * lf.max(sf) * F64 + STATE_ALLOWANCE
+    Ok(localizer + separator + history + 4 * lf.max(sf) * F64 + STATE_ALLOWANCE)
 }
 
 #[cfg(test)]
@@ -173,6 +180,26 @@ mod tests {
         let e = bounds.check_settings(&settings).unwrap_err();
         assert_eq!(e.field, "separate.lifecycle.max_streams");
         assert!(e.message.contains("limits.max_streams (16)"), "{e}");
+    }
+
+    #[test]
+    fn settings_no_pipeline_could_use_have_no_footprint_and_are_named() {
+        let mics = (0..4)
+            .map(|i| Vec3::new(0.05 * i as f64, 0.0, 1.0))
+            .collect();
+        let array = MicArray::new("a", mics, (0..4).collect()).unwrap();
+        let layout = Layout::new(16_000, 343.0, vec![array], vec![], None).unwrap();
+        let cfg = PipelineConfig::default();
+        let bound = footprint(&layout, &cfg).unwrap();
+        assert!((1 << 20..64 << 20).contains(&bound), "{bound}");
+        let named = |edit: fn(&mut PipelineConfig)| {
+            let mut cfg = PipelineConfig::default();
+            edit(&mut cfg);
+            footprint(&layout, &cfg).unwrap_err().field
+        };
+        assert_eq!(named(|c| c.localize.frame = 0), "localize.frame");
+        assert_eq!(named(|c| c.separate.frame = 3), "separate.frame");
+        assert_eq!(named(|c| c.step_s = 0.0), "step_s");
     }
 
     #[test]

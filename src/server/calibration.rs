@@ -110,9 +110,12 @@ pub(super) async fn put_array(
         let e = crate::geometry::GeometryError::new("mics", e.message);
         ApiError::geometry(e, "")
     })?;
-    let _admitted = app
-        .registry
-        .admit_memory(s.id(), footprint(&layout, &s.settings()))?;
+    // A layout the settings cannot be built on is refused by the change itself, which names
+    // why; only one that could apply counts against the memory budget.
+    let _admitted = match footprint(&layout, &s.settings()) {
+        Ok(bound) => Some(app.registry.admit_memory(s.id(), bound)?),
+        Err(_) => None,
+    };
     s.recalibrate(layout).await?;
     Ok(Json(s.info()))
 }
@@ -230,9 +233,13 @@ pub(super) async fn patch_settings(
     s.limits()
         .check_settings(&settings)
         .map_err(|e| ApiError::config(e, ""))?;
-    let _admitted = app
-        .registry
-        .admit_memory(s.id(), footprint(&s.layout(), &settings))?;
+    // Settings no pipeline could use are refused by the change itself, which names why (a
+    // frame, which cannot change live, as not live); only a change that could apply counts
+    // against the memory budget.
+    let _admitted = match footprint(&s.layout(), &settings) {
+        Ok(bound) => Some(app.registry.admit_memory(s.id(), bound)?),
+        Err(_) => None,
+    };
     s.configure(settings).await?;
     Ok(Json(s.settings()))
 }

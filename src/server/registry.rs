@@ -167,7 +167,8 @@ impl Registry {
         // another build panicked.
         let _building = self.building.lock().unwrap_or_else(|e| e.into_inner());
         let id = auth::new_session_id();
-        let _admitted = self.admit_memory(&id, footprint(&layout, &settings))?;
+        let bound = footprint(&layout, &settings).map_err(|e| ApiError::config(e, "settings"))?;
+        let _admitted = self.admit_memory(&id, bound)?;
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
         let seed = settings
             .seed

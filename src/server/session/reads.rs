@@ -75,8 +75,10 @@ impl Session {
     /// once it has ended.
     pub fn memory_bound(&self) -> usize {
         match self.state() {
+            // The layout and settings in force were checked when they were applied, so they
+            // have a bound.
             SessionState::Running | SessionState::Finishing => {
-                crate::pipeline::footprint(&self.layout(), &self.settings())
+                crate::pipeline::footprint(&self.layout(), &self.settings()).unwrap_or(0)
             }
             SessionState::Finished | SessionState::Failed => 0,
         }
