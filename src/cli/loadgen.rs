@@ -1,7 +1,8 @@
 //! `avsep loadgen`: load test of a running server. Simulates one scene (the uca8 preset by
 //! default: 8 microphones, 16 kHz, 3 talkers, one camera), creates N sessions, streams the scene
 //! into all of them concurrently (in real time by default), and reports step latency, refused
-//! input, memory per session and whether the server held real time. Several counts can be given
+//! input, memory per session (measured, and the bound the server's memory budget counts) and
+//! whether the server held real time. Several counts can be given
 //! (`--sessions 10,20,50`) to find the largest that holds.
 
 use std::time::{Duration, Instant};
@@ -82,6 +83,8 @@ pub struct LoadReport {
     pub output_dropped: u64,
     /// Server resident memory growth per session (MB).
     pub mb_per_session: f64,
+    /// The memory bound the server's budget counts per session (MB), for comparison.
+    pub bound_mb_per_session: f64,
     /// Wall time of the run (s).
     pub wall_s: f64,
     /// Every stream ended normally with every step.
@@ -137,7 +140,7 @@ pub fn run(args: LoadgenArgs) -> Result<(), CliError> {
         reports.push(r);
     }
     println!(
-        "{:>8} {:>10} {:>10} {:>9} {:>8} {:>6} {:>6} {:>8} {:>8} {:>6}",
+        "{:>8} {:>10} {:>10} {:>9} {:>8} {:>6} {:>6} {:>8} {:>8} {:>10} {:>6}",
         "sessions",
         "p99max_ms",
         "p99med_ms",
@@ -147,11 +150,12 @@ pub fn run(args: LoadgenArgs) -> Result<(), CliError> {
         "refused",
         "dropped",
         "MB/sess",
+        "bound/sess",
         "holds"
     );
     for r in &reports {
         println!(
-            "{:>8} {:>10.2} {:>10.2} {:>9.2} {:>8.3} {:>6.2} {:>6} {:>8} {:>8.2} {:>6}",
+            "{:>8} {:>10.2} {:>10.2} {:>9.2} {:>8.3} {:>6.2} {:>6} {:>8} {:>8.2} {:>10.2} {:>6}",
             r.sessions,
             r.p99_ms_max,
             r.p99_ms_median,
@@ -161,6 +165,7 @@ pub fn run(args: LoadgenArgs) -> Result<(), CliError> {
             r.refused,
             r.output_dropped,
             r.mb_per_session,
+            r.bound_mb_per_session,
             if r.meets_target {
                 "yes"
             } else if r.holds_real_time {
@@ -195,7 +200,13 @@ async fn run_once(
         .map_err(CliError::runtime)?;
     let cpu = |text: &str| prom_value(text, "avsep_process_cpu_seconds_total").unwrap_or(0.0);
     let rss0 = rss(&before.text());
+    let bound = |text: &str| prom_value(text, "avsep_sessions_memory_bound_bytes").unwrap_or(0.0);
+    let bound0 = bound(&before.text());
     let sessions = create_sessions(addr, key, scene, n).await?;
+    let bound1 = http(addr, "GET", "/metrics", None, None)
+        .await
+        .map(|m| bound(&m.text()))
+        .unwrap_or(bound0);
     // The feed is built before the clock starts: the figures are of the streams alone.
     let (feed, opts) = feed_and_options(args, scene);
     let started = Instant::now();
@@ -243,6 +254,7 @@ async fn run_once(
         refused: m.refused,
         output_dropped: m.dropped,
         mb_per_session: (peak - rss0).max(0.0) / n.max(1) as f64 / 1e6,
+        bound_mb_per_session: (bound1 - bound0).max(0.0) / n.max(1) as f64 / 1e6,
         wall_s,
         complete,
         holds_real_time: holds,
