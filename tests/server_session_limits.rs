@@ -106,15 +106,28 @@ async fn creations_past_the_rate_are_refused_and_the_server_goes_on() {
     server.stop().await;
 }
 
+/// The test settings with a stream cap of `streams`.
+fn capped(streams: usize) -> avsep::pipeline::PipelineConfig {
+    let mut s = settings(1);
+    s.separate.lifecycle.max_streams = streams;
+    s
+}
+
+/// The memory bound of a session on `sc` with a stream cap of `streams`.
+fn memory_bound(sc: &avsep::scene::Scene, streams: usize) -> usize {
+    avsep::pipeline::footprint(&sc.layout, &capped(streams)).unwrap()
+}
+
+/// A settings patch that sets the stream cap to `streams`.
+fn cap_patch(streams: usize) -> Vec<u8> {
+    let p = serde_json::json!({"separate": {"lifecycle": {"max_streams": streams}}});
+    serde_json::to_vec(&p).unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sessions_past_the_memory_budget_are_refused_and_the_others_go_on() {
     let sc = scene("uca8", 1.0, 1, 3);
-    let capped = |streams: usize| {
-        let mut s = settings(1);
-        s.separate.lifecycle.max_streams = streams;
-        s
-    };
-    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams)).unwrap();
+    let bound = |streams: usize| memory_bound(&sc, streams);
     // Room for a session with a stream cap of 4 and one with a cap of 1, not for two of 4,
     // nor for one of 16.
     let budget = bound(4) + bound(1);
@@ -157,18 +170,14 @@ async fn sessions_past_the_memory_budget_are_refused_and_the_others_go_on() {
     // A settings change that raises the bound past the budget is refused and changes nothing;
     // one that lowers it is applied and makes room for the second session.
     let path = format!("/v1/sessions/{}/settings", first.id);
-    let patch = |streams: usize| {
-        let p = serde_json::json!({"separate": {"lifecycle": {"max_streams": streams}}});
-        serde_json::to_vec(&p).unwrap()
-    };
     refused(
-        http(&host, "PATCH", &path, token, Some(&patch(16)))
+        http(&host, "PATCH", &path, token, Some(&cap_patch(16)))
             .await
             .unwrap(),
     );
     let session = server.registry.get(&first.id).unwrap();
     assert_eq!(session.settings().separate.lifecycle.max_streams, 4);
-    let narrower = http(&host, "PATCH", &path, token, Some(&patch(1)))
+    let narrower = http(&host, "PATCH", &path, token, Some(&cap_patch(1)))
         .await
         .unwrap();
     assert_eq!(narrower.status, 200, "{}", narrower.text());
@@ -208,21 +217,14 @@ async fn sessions_past_the_memory_budget_are_refused_and_the_others_go_on() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn concurrent_changes_cannot_pass_the_memory_budget_together() {
     let sc = scene("uca8", 1.0, 1, 3);
-    let capped = |streams: usize| {
-        let mut s = settings(1);
-        s.separate.lifecycle.max_streams = streams;
-        s
-    };
-    let bound = |streams: usize| avsep::pipeline::footprint(&sc.layout, &capped(streams)).unwrap();
+    let bound = |streams: usize| memory_bound(&sc, streams);
     let budget = (bound(1) + bound(8) + (1 << 20)) >> 20;
     assert!(2 * bound(8) > budget << 20);
     let server = server_with(|l| l.max_memory_mb = budget).await;
     let a = server.create(&sc, capped(1), None).await;
     let b = server.create(&sc, capped(1), None).await;
     let host = server.host();
-    let body =
-        serde_json::to_vec(&serde_json::json!({"separate": {"lifecycle": {"max_streams": 8}}}))
-            .unwrap();
+    let body = cap_patch(8);
     let patch = |s: &avsep::protocol::rest::SessionCreated| {
         let path = format!("/v1/sessions/{}/settings", s.id);
         let (host, body, token) = (host.clone(), body.clone(), s.token.clone());

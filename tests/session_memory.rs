@@ -64,22 +64,29 @@ fn kept_by<T>(f: impl FnOnce() -> T) -> (T, f64) {
 
 /// A circular array of `m` microphones of radius `r` at 1 m height.
 fn circle(m: usize, r: f64) -> Layout {
-    let mics = (0..m)
-        .map(|i| {
-            let a = std::f64::consts::TAU * i as f64 / m as f64;
-            Vec3::new(3.0 + r * a.cos(), 2.5 + r * a.sin(), 1.0)
-        })
-        .collect();
-    let array = MicArray::new("a0", mics, (0..m).collect()).expect("array");
-    Layout::new(16_000, 343.0, vec![array], vec![], None).expect("layout")
+    one_array(
+        (0..m)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / m as f64;
+                Vec3::new(3.0 + r * a.cos(), 2.5 + r * a.sin(), 1.0)
+            })
+            .collect(),
+    )
 }
 
 /// A line of `m` microphones `d` apart along x at 1 m height.
 fn line(m: usize, d: f64) -> Layout {
-    let mics = (0..m)
-        .map(|i| Vec3::new(3.0 + d * i as f64, 2.5, 1.0))
-        .collect();
-    let array = MicArray::new("a0", mics, (0..m).collect()).expect("array");
+    one_array(
+        (0..m)
+            .map(|i| Vec3::new(3.0 + d * i as f64, 2.5, 1.0))
+            .collect(),
+    )
+}
+
+/// A layout of one array whose microphones each carry an audio channel.
+fn one_array(mics: Vec<Vec3>) -> Layout {
+    let channels = (0..mics.len()).collect();
+    let array = MicArray::new("a0", mics, channels).expect("array");
     Layout::new(16_000, 343.0, vec![array], vec![], None).expect("layout")
 }
 

@@ -118,8 +118,9 @@ impl SizeBounds {
 const STATE_ALLOWANCE: usize = 2 << 20;
 
 /// Bytes a pipeline for `layout` with `cfg` takes at most, with every label its stream cap
-/// allows separated (an error naming the field for settings no pipeline could be built with): the localiser's tables, the separator's with its streams, and the audio
-/// buffers. It is computed from the sizes the stages are built with, without building them;
+/// allows separated: the localiser's tables, the separator's with its streams, and the audio
+/// buffers; an error naming the field for settings no pipeline could be built with. It is
+/// computed from the sizes the stages are built with, without building them;
 /// `tests/session_memory.rs` checks that it never undercuts what a pipeline holds.
 pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> Result<usize, ConfigError> {
     const F64: usize = 8;

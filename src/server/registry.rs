@@ -290,17 +290,10 @@ impl Registry {
         }
     }
 
-    /// Memory the pipelines of the sessions held may take at most, leaving out `except`'s.
-    pub fn memory_in_use(&self, except: Option<&str>) -> usize {
-        match self.reserved.lock() {
-            Ok(r) => self.in_use_with(&r, except),
-            Err(e) => self.in_use_with(&e.into_inner(), except),
-        }
-    }
-
-    /// [`Registry::memory_in_use`] with the reservations `reserved`: a session counts at the
-    /// larger of its bound and its reservation, a session being created at its reservation.
-    fn in_use_with(&self, reserved: &BTreeMap<String, usize>, except: Option<&str>) -> usize {
+    /// Memory the pipelines of the sessions held may take at most, leaving out `except`'s,
+    /// with the reservations `reserved`: a session counts at the larger of its bound and its
+    /// reservation, a session being created at its reservation.
+    fn memory_in_use(&self, reserved: &BTreeMap<String, usize>, except: Option<&str>) -> usize {
         let sessions = self.list();
         let held: usize = sessions
             .iter()
@@ -329,7 +322,7 @@ impl Registry {
     pub fn admit_memory(&self, id: &str, bytes: usize) -> Result<MemoryReservation<'_>, ApiError> {
         let budget = self.config.limits.max_memory_mb;
         let mut reserved = self.reserved.lock().unwrap_or_else(|e| e.into_inner());
-        let in_use = self.in_use_with(&reserved, Some(id));
+        let in_use = self.memory_in_use(&reserved, Some(id));
         if budget > 0 && in_use.saturating_add(bytes) > budget.saturating_mul(1 << 20) {
             let mb = |b: usize| b.div_ceil(1 << 20);
             return Err(ApiError::new(
