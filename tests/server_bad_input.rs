@@ -83,7 +83,7 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     .await
     .unwrap();
     let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
-    assert_eq!(m.refused.values().sum::<u64>(), 13, "{:?}", m.refused);
+    assert_eq!(m.refused.values().sum::<u64>(), 15, "{:?}", m.refused);
     assert_eq!(m.refused["truncated"], 2);
     server.stop().await;
 }
@@ -414,9 +414,10 @@ async fn impossible_changes_are_refused(rest: &Rest, s: &Created, sc: &avsep::sc
 
 /// One bad message of each kind, to send just after the audio of samples [4096, 5120) of `sc`:
 /// six audio frames (wrong channel count, truncated, header only, over the size limit, NaN
-/// sample, going backwards) and seven JSON messages (malformed, unknown type, a box with a
+/// sample, going backwards) and nine JSON messages (malformed, unknown type, a box with a
 /// string for a coordinate, unknown camera, negative box width, detections going backwards,
-/// detections from far ahead).
+/// detections from far ahead, a camera frame and a device frame past
+/// `limits.max_measurements`).
 fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
     let audio = sc.audio.as_ref().unwrap();
     let ch = audio.channels;
@@ -455,6 +456,9 @@ fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
     let mut with_nan = block(5120, 1024);
     with_nan.samples[3 * ch + 2] = f32::NAN;
     let backwards = block(4096, 1024).encode();
+    let over = Limits::default().max_measurements + 1;
+    let crowd = vec![r#"{"x":10,"y":10,"w":20,"h":20}"#; over].join(",");
+    let doas = vec![r#"{"azimuth":10}"#; over].join(",");
     vec![
         bad_audio(wrong_channels, 5120),
         bad_audio(truncated, 5120),
@@ -481,6 +485,12 @@ fn bad_messages(sc: &avsep::scene::Scene) -> Vec<FeedItem> {
         bad_json(&format!(
             "{{\"type\":\"detections\",\"t\":1e9,\"camera\":\"{cam}\",\"boxes\":[]}}"
         )),
+        bad_json(&format!(
+            r#"{{"type":"detections","t":0.3,"camera":"{cam}","boxes":[{crowd}]}}"#
+        )),
+        bad_json(&format!(
+            r#"{{"type":"audio_measurements","t":0.3,"array":"a0","doas":[{doas}]}}"#
+        )),
     ]
 }
 
@@ -499,5 +509,12 @@ fn every_refusal_is_named(e: &[ErrorBody]) {
     find(e, "bad_box", Some("boxes[0].w"));
     find(e, "time_backwards", Some("t"));
     find_saying(e, "too_early", "t", "max_lead_s");
-    assert_eq!(e.len(), 13, "{e:#?}");
+    find_saying(e, "too_many_measurements", "boxes", "257 boxes");
+    find_saying(
+        e,
+        "too_many_measurements",
+        "doas",
+        "limits.max_measurements (256)",
+    );
+    assert_eq!(e.len(), 15, "{e:#?}");
 }

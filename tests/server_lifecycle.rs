@@ -8,16 +8,12 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use avsep::pipeline::{
-    ConfigError, EventSink, InputError, Pipeline, PipelineConfig, PipelineEvent,
-};
+use avsep::pipeline::{Pipeline, PipelineConfig};
 use avsep::protocol::rest::{SessionInfo, SessionMetrics, TrackHistory, TracksSnapshot};
 use avsep::protocol::{OutputSelection, SampleEncoding};
-use avsep::scene::{AudioMeasurementFrame, DetectionFrame};
 use avsep::server::client::{FeedItem, FeedMessage, StreamOptions, http, scene_feed, stream_feed};
-use avsep::server::engine::Engine;
-use avsep::server::session::SessionSpec;
 use avsep::server::{ServerConfig, client::create_body};
+use server_support::hooked::{Hooked, hand_made_spec};
 use server_support::{TestServer, assert_same_tracks, offline, scene, settings, spawn_listener};
 
 /// One session's REST resources under its token.
@@ -328,92 +324,6 @@ async fn raw_request(host: &str, req: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// A pipeline with test hooks: `on_audio` sees each audio block's first sample before the
-/// pipeline does; `on_event` passes each event on to the sink (and may act around it).
-struct Hooked {
-    inner: Pipeline,
-    on_audio: Box<dyn FnMut(u64) + Send>,
-    on_event: Box<EventHook>,
-}
-
-/// What [`Hooked`] does with each event: pass it on to the sink, and act around that.
-type EventHook = dyn FnMut(PipelineEvent, &mut EventSink<'_>) + Send;
-
-impl Hooked {
-    fn new(inner: Pipeline) -> Self {
-        Self {
-            inner,
-            on_audio: Box::new(|_| {}),
-            on_event: Box::new(|e, sink| sink(e)),
-        }
-    }
-}
-
-impl Engine for Hooked {
-    fn push_audio(
-        &mut self,
-        first: u64,
-        ch: usize,
-        s: &[f32],
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        (self.on_audio)(first);
-        let on_event = &mut self.on_event;
-        self.inner
-            .push_audio_to(first, ch, s, &mut |e| on_event(e, &mut *sink))
-    }
-    fn push_detections(
-        &mut self,
-        f: DetectionFrame,
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let on_event = &mut self.on_event;
-        self.inner
-            .push_detections_to(f, &mut |e| on_event(e, &mut *sink))
-    }
-    fn push_device_measurements(
-        &mut self,
-        f: AudioMeasurementFrame,
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let on_event = &mut self.on_event;
-        self.inner
-            .push_device_measurements_to(f, &mut |e| on_event(e, &mut *sink))
-    }
-    fn set_layout(&mut self, l: avsep::geometry::Layout) -> Result<(), ConfigError> {
-        self.inner.set_layout(l)
-    }
-    fn update_config(&mut self, c: PipelineConfig) -> Result<(), ConfigError> {
-        self.inner.update_config(c)
-    }
-    fn finish(&mut self, sink: &mut EventSink<'_>) {
-        let on_event = &mut self.on_event;
-        self.inner.finish_to(&mut |e| on_event(e, &mut *sink))
-    }
-}
-
-/// The registry's description of a session made by hand (for a hooked engine).
-fn hand_made_spec(
-    server: &TestServer,
-    id: &str,
-    name: &str,
-    token: &str,
-    sc: &avsep::scene::Scene,
-    pipeline: &Pipeline,
-) -> SessionSpec {
-    SessionSpec {
-        id: id.into(),
-        name: Some(name.into()),
-        token: token.into(),
-        step_s: pipeline.clock().step_s(),
-        audio_delay_samples: pipeline.audio_delay_samples(),
-        layout: sc.layout.clone(),
-        settings: settings(8),
-        limits: server.registry.config().limits.clone(),
-        execution: server.registry.config().execution.clone(),
-    }
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_panicking_pipeline_fails_its_session_only() {
     let server = TestServer::start(ServerConfig::default()).await;
@@ -501,19 +411,8 @@ async fn a_steps_tracks_are_published_before_the_rest_of_its_work() {
     let token = "e".repeat(64);
     let id = "0e1d0e1d0e1d0e1d";
     let spec = hand_made_spec(&server, id, "held", &token, &sc, &pipeline);
-    // After its first step's tracks the engine stops until the test lets it go on, like a
-    // separation that takes long.
-    let (release, gate) = std::sync::mpsc::channel::<()>();
-    let mut held = false;
-    let mut engine = Hooked::new(pipeline);
-    engine.on_event = Box::new(move |e, sink| {
-        let tracks = matches!(e, PipelineEvent::Tracks { .. });
-        sink(e);
-        if tracks && !held {
-            held = true;
-            let _ = gate.recv_timeout(Duration::from_secs(20));
-        }
-    });
+    // After its first step's tracks the engine stops until the test lets it go on.
+    let (engine, release) = Hooked::held_after_first_step(pipeline);
     server.registry.insert(spec, engine).unwrap();
     let url = format!("ws://{host}/v1/sessions/{id}/stream");
     let feed = scene_feed(&sc, 1024, SampleEncoding::F32);

@@ -1,18 +1,23 @@
 //! The bounds on sessions themselves: sessions nobody uses end by themselves
 //! (`limits.idle_timeout_s`): one never fed is removed, one fed and left finishes (its results
 //! stay readable), and one with a client connected runs on however quiet it is; creations
-//! past `limits.session_creations_per_min` are refused; and sessions are admitted by their memory
-//! bound under `limits.max_memory_mb`, at creation and on every change that moves the bound.
+//! past `limits.session_creations_per_min` are refused; a session's input queue holds at most
+//! `limits.queue_bytes`; and sessions are admitted by their memory bound under
+//! `limits.max_memory_mb`, at creation and on every change that moves the bound.
 
 mod server_support;
 
 use std::time::{Duration, Instant};
 
-use avsep::protocol::rest::SessionState;
+use avsep::pipeline::Pipeline;
+use avsep::protocol::rest::{SessionMetrics, SessionState};
 use avsep::protocol::{AudioFrame, SampleEncoding};
-use avsep::server::client::{connect, create_body, http};
+use avsep::server::client::{
+    FeedItem, FeedMessage, StreamOptions, connect, create_body, http, scene_feed, stream_feed,
+};
 use avsep::server::{Limits, ServerConfig};
 use futures_util::SinkExt;
+use server_support::hooked::{Hooked, hand_made_spec};
 use server_support::{TestServer, scene, settings};
 use tokio_tungstenite::tungstenite::Message;
 
@@ -113,9 +118,12 @@ fn capped(streams: usize) -> avsep::pipeline::PipelineConfig {
     s
 }
 
-/// The memory bound of a session on `sc` with a stream cap of `streams`.
+/// The memory bound of a session on `sc` with a stream cap of `streams` (pipeline and buffers,
+/// at the default limits but for the budget).
 fn memory_bound(sc: &avsep::scene::Scene, streams: usize) -> usize {
-    avsep::pipeline::footprint(&sc.layout, &capped(streams)).unwrap()
+    let c = ServerConfig::default();
+    avsep::server::budget::session_bound(&c.limits, &c.execution, &sc.layout, &capped(streams))
+        .unwrap()
 }
 
 /// A settings patch that sets the stream cap to `streams`.
@@ -253,5 +261,80 @@ async fn concurrent_changes_cannot_pass_the_memory_budget_together() {
         })
         .collect();
     assert!(caps == [1, 8] || caps == [8, 1], "{caps:?}");
+    server.stop().await;
+}
+
+/// While its pipeline is held, a session takes a dense detections message into its queue and
+/// refuses the next two, which would take the queue past `limits.queue_bytes`, with `queue_full`
+/// naming the limit; its audio goes on being accepted, and once the pipeline goes on the session
+/// processes everything it accepted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_input_queue_holds_at_most_queue_bytes() {
+    let server = server_with(|l| {
+        l.max_message_bytes = 256 << 10;
+        l.queue_bytes = 1 << 20;
+        l.max_measurements = 10_000;
+    })
+    .await;
+    let sc = scene("uca8", 1.0, 1, 5);
+    let pipeline = Pipeline::new(sc.layout.clone(), settings(5), 5).unwrap();
+    let (token, id) = ("c".repeat(64), "0c0c0c0c0c0c0c0c");
+    let spec = hand_made_spec(&server, id, "queued", &token, &sc, &pipeline);
+    let (engine, release) = Hooked::held_after_first_step(pipeline);
+    server.registry.insert(spec, engine).unwrap();
+
+    // 7,000 boxes: about 210 kB of JSON, 504 kB decoded; one fits beside the audio, two do not.
+    let camera = &sc.layout.cameras[0].id;
+    let boxes = vec![r#"{"x":10,"y":10,"w":20,"h":20}"#; 7000].join(",");
+    let dense = |t: f64| FeedItem {
+        due_s: 0.0,
+        message: FeedMessage::Json(format!(
+            r#"{{"type":"detections","t":{t},"camera":"{camera}","boxes":[{boxes}]}}"#
+        )),
+    };
+    let mut feed = scene_feed(&sc, 1024, SampleEncoding::F32);
+    let k = feed
+        .iter()
+        .position(|i| matches!(i.message, FeedMessage::Audio { end: 4096, .. }))
+        .unwrap();
+    // Between the scene's camera frames at 0.2 s and 0.267 s.
+    let inserted = [0.21, 0.22, 0.23].map(dense);
+    feed.splice(k + 1..k + 1, inserted);
+    let url = format!("ws://{}/v1/sessions/{id}/stream", server.host());
+    let (feed_token, opts) = (token.clone(), StreamOptions::default());
+    let run = tokio::spawn(async move { stream_feed(&url, &feed_token, &feed, &opts).await });
+
+    let (host, path) = (server.host(), format!("/v1/sessions/{id}/metrics"));
+    let metrics = async || -> SessionMetrics {
+        let r = http(&host, "GET", &path, Some(&token), None);
+        r.await.unwrap().json().unwrap()
+    };
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let held = loop {
+        let m = metrics().await;
+        if m.refused.get("queue_full") == Some(&2) {
+            break m;
+        }
+        assert!(Instant::now() < deadline, "never refused: {m:?}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    assert_eq!(held.queue_bytes_capacity, 1 << 20);
+    assert!(
+        (500_000..=1 << 20).contains(&held.queue_bytes),
+        "{}",
+        held.queue_bytes
+    );
+    release.send(()).unwrap();
+    let got = run.await.unwrap().unwrap();
+    assert_eq!(got.errors.len(), 2, "{:?}", got.errors);
+    for e in &got.errors {
+        assert_eq!(e.code, "queue_full");
+        assert!(e.message.contains("limits.queue_bytes"), "{}", e.message);
+    }
+    // Every step of the scene's second was processed, and the queue is empty.
+    assert_eq!(got.tracks.len(), 8);
+    let after = metrics().await;
+    assert_eq!((after.queue_bytes, after.queue_depth), (0, 0));
+    assert_eq!(after.refused.values().sum::<u64>(), 2);
     server.stop().await;
 }

@@ -138,10 +138,16 @@ fn the_largest_session_the_default_bounds_admit_is_bounded() {
         built + streams
     );
     let per_stream = streams / bounds.max_streams as f64;
+    let c = avsep::server::ServerConfig::default();
+    let session = avsep::server::budget::session_bound(&c.limits, &c.execution, &layout, &cfg)
+        .unwrap() as f64
+        / 1e6;
     println!(
-        "built {built:.0} MB; {streams:.0} MB for {} streams; bound {bound:.0} MB",
+        "built {built:.0} MB; {streams:.0} MB for {} streams; bound {bound:.0} MB, {session:.0} MB \
+         with the server's buffers",
         out.len()
     );
+    assert!((bound..bound + 100.0).contains(&session), "{session:.0} MB");
     assert!(
         (10.0..100.0).contains(&per_stream),
         "{per_stream:.1} MB a stream"

@@ -32,13 +32,16 @@ pub struct ServeArgs {
     /// Most sessions held at once.
     #[arg(long, env = "AVSEP_MAX_SESSIONS")]
     pub max_sessions: Option<usize>,
-    /// Memory (MB) the running sessions' pipelines may take together, by their bounds; 0 for
-    /// no budget.
+    /// Memory (MB) the running sessions (pipelines and buffers) may take together, by their
+    /// bounds; 0 for no budget.
     #[arg(long, env = "AVSEP_MAX_MEMORY_MB")]
     pub max_memory_mb: Option<usize>,
     /// Inbound messages queued per session before `queue_full`.
     #[arg(long, env = "AVSEP_QUEUE_DEPTH")]
     pub queue_depth: Option<usize>,
+    /// Bytes the messages queued per session may hold, decoded, before `queue_full`.
+    #[arg(long, env = "AVSEP_QUEUE_BYTES")]
+    pub queue_bytes: Option<usize>,
     /// Do not join Zenoh (REST and WebSocket only).
     #[arg(long, env = "AVSEP_NO_ZENOH")]
     pub no_zenoh: bool,
@@ -93,6 +96,9 @@ impl ServeArgs {
         }
         if let Some(n) = self.queue_depth {
             cfg.limits.queue_depth = n;
+        }
+        if let Some(n) = self.queue_bytes {
+            cfg.limits.queue_bytes = n;
         }
         if self.no_zenoh {
             cfg.zenoh.enabled = false;
@@ -218,9 +224,20 @@ mod tests {
 
     #[test]
     fn flags_override_the_limits_that_size_a_server() {
-        let cli = Cli::try_parse_from(["avsep", "--max-sessions", "3", "--max-memory-mb", "0"]);
-        let cfg = cli.unwrap().serve.settings().unwrap();
-        assert_eq!((cfg.limits.max_sessions, cfg.limits.max_memory_mb), (3, 0));
+        let cli = Cli::try_parse_from([
+            "avsep",
+            "--max-sessions",
+            "3",
+            "--max-memory-mb",
+            "0",
+            "--queue-bytes",
+            "8388608",
+        ]);
+        let l = cli.unwrap().serve.settings().unwrap().limits;
+        assert_eq!(
+            (l.max_sessions, l.max_memory_mb, l.queue_bytes),
+            (3, 0, 8 << 20)
+        );
         let cfg = Cli::try_parse_from(["avsep"])
             .unwrap()
             .serve

@@ -151,6 +151,9 @@ pub enum ServerMessage {
         /// Largest message (bytes) the server accepts.
         #[serde(default)]
         max_message_bytes: usize,
+        /// Most boxes a camera frame, or directions and points a device frame, may carry.
+        #[serde(default)]
+        max_measurements: usize,
     },
     /// The tracker's estimate after one step.
     Tracks {

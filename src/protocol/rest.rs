@@ -336,6 +336,10 @@ pub struct SessionMetrics {
     pub queue_depth: usize,
     /// Queue capacity.
     pub queue_capacity: usize,
+    /// Bytes the waiting messages hold, decoded.
+    pub queue_bytes: usize,
+    /// Bytes the queue may hold (`limits.queue_bytes`).
+    pub queue_bytes_capacity: usize,
     /// Steps of separation work waiting for the session's separation thread (which runs at a
     /// lower priority than the tracker, so it may lag under load without delaying the tracks).
     pub separation_queue_depth: usize,

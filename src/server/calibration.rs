@@ -6,10 +6,11 @@ use axum::Json;
 use axum::extract::{Path, RawQuery, Request, State};
 use axum::http::{HeaderMap, StatusCode};
 
-use crate::pipeline::{PipelineConfig, footprint};
+use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::{ArrayCalibration, CameraCalibration, SessionInfo};
 use crate::scene::convert::{array_from_file, camera_from_file, layout_from_file, layout_to_file};
 use crate::scene::format::SceneFile;
+use crate::server::budget::session_bound;
 
 use super::app::AppState;
 use super::error::{ApiError, JsonBody, parse_json};
@@ -112,7 +113,8 @@ pub(super) async fn put_array(
     })?;
     // A layout the settings cannot be built on is refused by the change itself, which names
     // why; only one that could apply counts against the memory budget.
-    let _admitted = match footprint(&layout, &s.settings()) {
+    let cfg = app.registry.config();
+    let _admitted = match session_bound(&cfg.limits, &cfg.execution, &layout, &s.settings()) {
         Ok(bound) => Some(app.registry.admit_memory(s.id(), bound)?),
         Err(_) => None,
     };
@@ -236,7 +238,8 @@ pub(super) async fn patch_settings(
     // Settings no pipeline could use are refused by the change itself, which names why (a
     // frame, which cannot change live, as not live); only a change that could apply counts
     // against the memory budget.
-    let _admitted = match footprint(&s.layout(), &settings) {
+    let cfg = app.registry.config();
+    let _admitted = match session_bound(&cfg.limits, &cfg.execution, &s.layout(), &settings) {
         Ok(bound) => Some(app.registry.admit_memory(s.id(), bound)?),
         Err(_) => None,
     };

@@ -51,7 +51,7 @@ impl Default for ServerConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct Limits {
     /// Sessions the server holds at once (running or finished but not yet deleted); what
-    /// their pipelines may take together is bounded by `max_memory_mb`.
+    /// they may take together is bounded by `max_memory_mb`.
     pub max_sessions: usize,
     /// Stream clients connected to one session at once.
     pub max_clients_per_session: usize,
@@ -59,10 +59,20 @@ pub struct Limits {
     pub max_audio_samples: usize,
     /// Largest WebSocket message (bytes).
     pub max_message_bytes: usize,
+    /// Most boxes one camera frame, or directions and points one device frame, may carry.
+    /// The tracker's work and memory for a frame grow with them (30,000 boxes in one frame
+    /// took 29 MB to process), and no room holds more faces than this.
+    pub max_measurements: usize,
     /// Largest REST request body (bytes).
     pub max_body_bytes: usize,
     /// Inbound messages a session queues for its pipeline; more are refused with `queue_full`.
     pub queue_depth: usize,
+    /// Bytes the messages a session queues may hold together, decoded (a JSON message of
+    /// many boxes or points takes about three times its size); more are refused with
+    /// `queue_full`. At least 4 x `max_message_bytes`, so any message the size limit admits
+    /// fits an empty queue. It counts in each session's memory bound; the default, 4 MiB, holds
+    /// 128 audio frames of 1,024 samples on 8 channels.
+    pub queue_bytes: usize,
     /// Output messages buffered for each stream client; a client that falls further behind
     /// skips ahead and is told how many it missed (`output_dropped`).
     pub output_buffer: usize,
@@ -93,10 +103,10 @@ pub struct Limits {
     /// the rate are still counted in the metrics; the next one published says how many were
     /// held back. Without it anyone on the network could flood the session's outputs.
     pub zenoh_refusals_per_s: f64,
-    /// Memory (MB) the running sessions' pipelines may take together, at most, each counted by
-    /// the bound its layout and settings give with every stream its cap allows
-    /// (`memory_bound_bytes` in its info; an everyday 8-microphone session counts about 45 MB,
-    /// the largest the default limits admit about 1.6 GB). A creation, recalibration or
+    /// Memory (MB) the running sessions may take together, at most, each counted by the bound
+    /// its layout and settings give for its pipeline and the server's buffers around it, with
+    /// every stream its cap allows (`memory_bound_bytes` in its info; an everyday 8-microphone
+    /// session counts about 60 MB, the largest the default limits admit about 1.65 GB). A creation, recalibration or
     /// settings change past it is refused with 503 `memory_budget`; 0 sets no budget.
     pub max_memory_mb: usize,
     /// Seconds a running session may go without accepted input and without a connected stream
@@ -134,8 +144,10 @@ impl Limits {
             ("limits.max_clients_per_session", l.max_clients_per_session),
             ("limits.max_audio_samples", l.max_audio_samples),
             ("limits.max_message_bytes", l.max_message_bytes),
+            ("limits.max_measurements", l.max_measurements),
             ("limits.max_body_bytes", l.max_body_bytes),
             ("limits.queue_depth", l.queue_depth),
+            ("limits.queue_bytes", l.queue_bytes),
             ("limits.output_buffer", l.output_buffer),
             ("limits.history_steps", l.history_steps),
             ("limits.max_microphones", l.max_microphones),
@@ -150,6 +162,16 @@ impl Limits {
             return Err(ConfigError::new(
                 "limits.max_message_bytes",
                 format!("must hold a frame of max_audio_samples f32 samples ({frame_bytes} bytes)"),
+            ));
+        }
+        if l.queue_bytes / 4 < l.max_message_bytes {
+            return Err(ConfigError::new(
+                "limits.queue_bytes",
+                format!(
+                    "must be at least 4 x max_message_bytes ({} bytes), so that any message \
+                     the size limit admits fits an empty queue",
+                    4 * l.max_message_bytes
+                ),
             ));
         }
         let numbers: [(&str, f64, bool, &str); 6] = [
@@ -215,8 +237,10 @@ impl Default for Limits {
             max_clients_per_session: 8,
             max_audio_samples: 8 * 4096,
             max_message_bytes: 1 << 20,
+            max_measurements: 256,
             max_body_bytes: 256 << 10,
             queue_depth: 64,
+            queue_bytes: 4 << 20,
             output_buffer: 1024,
             history_steps: 2048,
             finished_ttl_s: 600.0,
@@ -322,8 +346,12 @@ mod tests {
     #[test]
     fn a_bad_time_or_rate_limit_is_named() {
         type Spoil = fn(&mut Limits);
-        let cases: [(&str, Spoil); 6] = [
+        let cases: [(&str, Spoil); 7] = [
             ("limits.finished_ttl_s", |l| l.finished_ttl_s = -1.0),
+            // A queue that could not take one message of the largest size.
+            ("limits.queue_bytes", |l| {
+                l.queue_bytes = 4 * l.max_message_bytes - 1
+            }),
             ("limits.zenoh_refusals_per_s", |l| {
                 l.zenoh_refusals_per_s = f64::NAN
             }),

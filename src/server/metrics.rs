@@ -351,6 +351,8 @@ pub struct SessionCounters {
     audio_samples: AtomicU64,
     /// Messages waiting in the session's queue.
     pub queue_depth: AtomicUsize,
+    /// Bytes those messages hold ([`crate::server::session::Input::bytes`]).
+    pub queue_bytes: AtomicUsize,
     /// Steps of separation work waiting for the session's separation thread.
     pub separation_queued: AtomicUsize,
     /// Capacity of the separation queue (0 when the session separates on its worker).
@@ -378,6 +380,7 @@ impl SessionCounters {
             processing_ns: AtomicU64::new(0),
             audio_samples: AtomicU64::new(0),
             queue_depth: AtomicUsize::new(0),
+            queue_bytes: AtomicUsize::new(0),
             separation_queued: AtomicUsize::new(0),
             separation_capacity: AtomicUsize::new(0),
             separation_waits: AtomicU64::new(0),

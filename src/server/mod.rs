@@ -9,6 +9,7 @@
 
 pub mod app;
 pub mod auth;
+pub mod budget;
 mod calibration;
 pub mod client;
 pub mod config;

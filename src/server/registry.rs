@@ -9,9 +9,10 @@ use std::time::{Duration, Instant};
 
 use axum::http::StatusCode;
 
-use crate::pipeline::{Pipeline, footprint};
+use crate::pipeline::Pipeline;
 use crate::protocol::rest::{CreateSession, SessionState};
 use crate::scene::convert::{geometry_file, layout_from_file};
+use crate::server::budget::session_bound;
 
 use super::auth;
 use super::config::ServerConfig;
@@ -167,7 +168,9 @@ impl Registry {
         // another build panicked.
         let _building = self.building.lock().unwrap_or_else(|e| e.into_inner());
         let id = auth::new_session_id();
-        let bound = footprint(&layout, &settings).map_err(|e| ApiError::config(e, "settings"))?;
+        let cfg = &self.config;
+        let bound = session_bound(&cfg.limits, &cfg.execution, &layout, &settings)
+            .map_err(|e| ApiError::config(e, "settings"))?;
         let _admitted = self.admit_memory(&id, bound)?;
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
         let seed = settings

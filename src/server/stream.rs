@@ -174,6 +174,7 @@ fn welcome(s: &SessionHandle) -> ServerMessage {
         queue_depth: limits.queue_depth,
         max_audio_samples: limits.max_audio_samples,
         max_message_bytes: limits.max_message_bytes,
+        max_measurements: limits.max_measurements,
     }
 }
 

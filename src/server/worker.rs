@@ -41,6 +41,10 @@ pub(super) fn run<E: Engine>(
     };
     while let Ok(q) = rx.recv() {
         session.counters.queue_depth.fetch_sub(1, Ordering::AcqRel);
+        session
+            .counters
+            .queue_bytes
+            .fetch_sub(q.bytes, Ordering::AcqRel);
         if let Err(panic) = catch_unwind(AssertUnwindSafe(|| handle(&mut engine, &session, q))) {
             wind_up(engine, separation);
             session.close_failed(panic_message(panic.as_ref()));
@@ -192,6 +196,7 @@ fn handle<E: Engine>(engine: &mut E, s: &Session, q: Queued) {
         client,
         received,
         work,
+        ..
     } = q;
     match work {
         Work::Input(input) => {

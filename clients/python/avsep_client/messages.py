@@ -33,6 +33,7 @@ class Welcome:
     queue_depth: int
     max_audio_samples: int
     max_message_bytes: int
+    max_measurements: int
 
 
 @dataclass(frozen=True)
@@ -170,5 +171,6 @@ def parse_message(text: str | bytes) -> Message:
             queue_depth=int(d.get("queue_depth", 0)),
             max_audio_samples=int(d.get("max_audio_samples", 0)),
             max_message_bytes=int(d.get("max_message_bytes", 0)),
+            max_measurements=int(d.get("max_measurements", 0)),
         )
     return Unknown(d)

@@ -30,6 +30,20 @@ impl Input {
             Self::AudioMeasurements(_) => FrameKind::AudioMeasurements,
         }
     }
+
+    /// Bytes the message holds while it waits in a session's queue (its allocations, by
+    /// capacity), which `limits.queue_bytes` bounds.
+    pub fn bytes(&self) -> usize {
+        fn held<T>(v: &Vec<T>) -> usize {
+            v.capacity() * std::mem::size_of::<T>()
+        }
+        std::mem::size_of::<Self>()
+            + match self {
+                Self::Audio(f) => held(&f.samples),
+                Self::Detections(d) => held(&d.boxes),
+                Self::AudioMeasurements(m) => held(&m.doas) + held(&m.points),
+            }
+    }
 }
 
 /// What the pipeline produced, as broadcast to every subscriber.
@@ -118,4 +132,60 @@ pub enum ControlError {
     Timeout,
     /// The session failed or ended before applying it.
     Ended,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::ClientMessage;
+    use crate::protocol::inbound::{detection_frame, device_frame, tests::layout};
+
+    /// The decoded input a JSON text becomes on its way to a session's queue.
+    fn decoded(text: &str) -> Input {
+        match ClientMessage::parse(text).unwrap() {
+            ClientMessage::Detections { t, camera, boxes } => {
+                Input::Detections(detection_frame(&layout(), t, &camera, &boxes).unwrap())
+            }
+            ClientMessage::AudioMeasurements(line) => {
+                Input::AudioMeasurements(device_frame(&layout(), &line).unwrap())
+            }
+            other => panic!("not a data message: {other:?}"),
+        }
+    }
+
+    /// `limits.queue_bytes` must hold 4 of the largest messages because the densest JSON (the
+    /// shortest boxes, directions and points) decodes to at most three times its size.
+    #[test]
+    fn the_densest_json_decodes_to_at_most_three_times_its_size() {
+        let n = 5000;
+        let boxes = vec![r#"{"x":0,"y":0,"w":1,"h":1}"#; n].join(",");
+        let detections =
+            format!(r#"{{"type":"detections","t":0,"camera":"cam0","boxes":[{boxes}]}}"#);
+        let doas = vec![r#"{"azimuth":0}"#; n].join(",");
+        let points = vec!["[0,0,1]"; n].join(",");
+        let device = format!(
+            r#"{{"type":"audio_measurements","t":0,"array":"a0","doas":[{doas}],"points":[{points}]}}"#
+        );
+        for text in [detections, device] {
+            let held = decoded(&text).bytes();
+            let ratio = held as f64 / text.len() as f64;
+            assert!(
+                (2.0..=3.0).contains(&ratio),
+                "{ratio:.2}: {held} for {}",
+                text.len()
+            );
+        }
+    }
+
+    #[test]
+    fn audio_counts_its_samples() {
+        let frame = AudioFrame {
+            first_sample: 0,
+            channels: 4,
+            samples: vec![0.0; 4096],
+            encoding: crate::protocol::SampleEncoding::I16,
+        };
+        let held = Input::Audio(frame).bytes();
+        assert_eq!(held, 4 * 4096 + std::mem::size_of::<Input>());
+    }
 }

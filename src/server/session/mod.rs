@@ -41,6 +41,8 @@ pub(super) struct Queued {
     pub client: ClientId,
     pub received: Instant,
     pub work: Work,
+    /// What it counts against `limits.queue_bytes` (input only).
+    pub bytes: usize,
 }
 
 /// What the worker does with a message.
@@ -100,6 +102,8 @@ pub struct Session {
     step_s: f64,
     audio_delay_samples: u64,
     limits: Limits,
+    /// How its work is spread over threads (the separation queue counts in its memory bound).
+    execution: Execution,
     layout: RwLock<Arc<Layout>>,
     settings: RwLock<PipelineConfig>,
     inbox: Mutex<Inbox>,
@@ -211,6 +215,7 @@ impl SessionHandle {
             name: spec.name,
             token: spec.token,
             limits: spec.limits,
+            execution: spec.execution.clone(),
         });
         let handle = Self(session);
         let for_worker = handle.clone();
@@ -391,6 +396,7 @@ impl Session {
         if inbox.tx.is_none() {
             return Err(self.closed_rejection());
         }
+        self.check_measurements(&input)?;
         let mut audio_end = None;
         if let Input::Audio(f) = &input {
             check_audio(&self.layout(), f.channels, &f.samples)?;
@@ -401,6 +407,29 @@ impl Session {
             inbox.next_sample = end;
         }
         Ok(())
+    }
+
+    /// Refuses a camera or device frame with more measurements than
+    /// `limits.max_measurements`, naming the list.
+    fn check_measurements(&self, input: &Input) -> Result<(), Rejection> {
+        let max = self.limits.max_measurements;
+        // The longer list is the one that can pass the limit.
+        let (field, n) = match input {
+            Input::Audio(_) => return Ok(()),
+            Input::Detections(d) => ("boxes", d.boxes.len()),
+            Input::AudioMeasurements(m) if m.doas.len() >= m.points.len() => ("doas", m.doas.len()),
+            Input::AudioMeasurements(m) => ("points", m.points.len()),
+        };
+        if n <= max {
+            return Ok(());
+        }
+        Err(Rejection {
+            code: "too_many_measurements",
+            field: Some(field.to_string()),
+            message: format!(
+                "the frame carries {n} {field}, more than limits.max_measurements ({max})"
+            ),
+        })
     }
 
     /// Refuses audio that goes back in time or skips more than `max_gap_s`; returns the end of
@@ -435,16 +464,38 @@ impl Session {
         let Some(tx) = inbox.tx.as_ref() else {
             return Err(self.closed_rejection());
         };
-        self.counters.queue_depth.fetch_add(1, Ordering::AcqRel);
+        let bytes = match &work {
+            Work::Input(input) => input.bytes(),
+            Work::Recalibrate(..) | Work::Configure(..) => 0,
+        };
+        // The inbox lock serialises senders and the worker only takes bytes out, so the sum
+        // cannot pass the limit between this check and the send.
+        let c = &self.counters;
+        let held = c.queue_bytes.load(Ordering::Acquire);
+        if held.saturating_add(bytes) > self.limits.queue_bytes {
+            return Err(Rejection::new(
+                "queue_full",
+                format!(
+                    "the session's queue holds {held} bytes of messages and this one takes \
+                     {bytes}, more than limits.queue_bytes ({}) together; this one was \
+                     dropped (send slower or retry)",
+                    self.limits.queue_bytes
+                ),
+            ));
+        }
+        c.queue_depth.fetch_add(1, Ordering::AcqRel);
+        c.queue_bytes.fetch_add(bytes, Ordering::AcqRel);
         let queued = Queued {
             client,
             received: Instant::now(),
             work,
+            bytes,
         };
         match tx.try_send(queued) {
             Ok(()) => Ok(()),
             Err(e) => {
-                self.counters.queue_depth.fetch_sub(1, Ordering::AcqRel);
+                c.queue_depth.fetch_sub(1, Ordering::AcqRel);
+                c.queue_bytes.fetch_sub(bytes, Ordering::AcqRel);
                 Err(match e {
                     TrySendError::Full(_) => Rejection::new(
                         "queue_full",

@@ -71,14 +71,20 @@ impl Session {
         }
     }
 
-    /// Memory the session's pipeline may take at most ([`crate::pipeline::footprint`]); none
-    /// once it has ended.
+    /// Memory the session's pipeline and buffers may take at most
+    /// ([`crate::server::budget::session_bound`]); none once it has ended.
     pub fn memory_bound(&self) -> usize {
         match self.state() {
             // The layout and settings in force were checked when they were applied, so they
             // have a bound.
             SessionState::Running | SessionState::Finishing => {
-                crate::pipeline::footprint(&self.layout(), &self.settings()).unwrap_or(0)
+                crate::server::budget::session_bound(
+                    &self.limits,
+                    &self.execution,
+                    &self.layout(),
+                    &self.settings(),
+                )
+                .unwrap_or(0)
             }
             SessionState::Finished | SessionState::Failed => 0,
         }
@@ -115,6 +121,8 @@ impl Session {
             labels_total: c.labels_total.load(Ordering::Relaxed),
             queue_depth: c.queue_depth.load(Ordering::Relaxed),
             queue_capacity: self.limits.queue_depth,
+            queue_bytes: c.queue_bytes.load(Ordering::Relaxed),
+            queue_bytes_capacity: self.limits.queue_bytes,
             separation_queue_depth: c.separation_queued.load(Ordering::Relaxed),
             separation_queue_capacity: c.separation_capacity.load(Ordering::Relaxed),
             separation_waits: c.separation_waits(),
