@@ -48,11 +48,12 @@ pub fn buffers(
     // label, or a snapshot; measurements lines are smaller than either.
     let output = 16 + size_of::<Output>() + snapshot.max(4 * hop + ITEM_ALLOWANCE);
     // A step of separation work: its audio (the last one also carries a frame of padding) and
-    // each frame's targets.
+    // each frame's targets. Beside the queue's steps, one is in the separation thread's hands
+    // and one in the worker's, which waits to send it while the queue is full.
     let separation = if settings.separation && execution.separation_thread {
         let samples = step + frame;
         let frames = samples / hop.max(1) + 1;
-        execution.separation_queue
+        (execution.separation_queue + 2)
             * (channels * samples * size_of::<f32>()
                 + frames * (24 + tracks * size_of::<Target>())
                 + ITEM_ALLOWANCE)

@@ -106,8 +106,9 @@ pub struct Limits {
     /// Memory (MB) the running sessions may take together, at most, each counted by the bound
     /// its layout and settings give for its pipeline and the server's buffers around it, with
     /// every stream its cap allows (`memory_bound_bytes` in its info; an everyday 8-microphone
-    /// session counts about 60 MB, the largest the default limits admit about 1.65 GB). A creation, recalibration or
-    /// settings change past it is refused with 503 `memory_budget`; 0 sets no budget.
+    /// session counts about 60 MB, the largest the default limits admit about 1.65 GB). A
+    /// creation, recalibration or settings change past it is refused with 503
+    /// `memory_budget`; 0 sets no budget.
     pub max_memory_mb: usize,
     /// Seconds a running session may go without accepted input and without a connected stream
     /// client before it is ended (`idle`); 0 never ends one. One that never received input
