@@ -71,7 +71,7 @@ pub struct Limits {
     /// many boxes or points takes about three times its size); more are refused with
     /// `queue_full`. At least 4 x `max_message_bytes`, so any message the size limit admits
     /// fits an empty queue. It counts in each session's memory bound; the default, 4 MiB, holds
-    /// 128 audio frames of 1,024 samples on 8 channels.
+    /// 127 audio frames of 1,024 samples on 8 channels.
     pub queue_bytes: usize,
     /// Output messages buffered for each stream client; a client that falls further behind
     /// skips ahead and is told how many it missed (`output_dropped`).

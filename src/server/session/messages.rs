@@ -187,5 +187,14 @@ mod tests {
         };
         let held = Input::Audio(frame).bytes();
         assert_eq!(held, 4 * 4096 + std::mem::size_of::<Input>());
+        // What `limits.queue_bytes` documents its default holds.
+        let block = AudioFrame {
+            first_sample: 0,
+            channels: 8,
+            samples: vec![0.0; 8 * 1024],
+            encoding: crate::protocol::SampleEncoding::F32,
+        };
+        let fit = crate::server::Limits::default().queue_bytes / Input::Audio(block).bytes();
+        assert_eq!(fit, 127);
     }
 }
