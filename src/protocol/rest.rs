@@ -196,8 +196,9 @@ pub struct SessionInfo {
     pub next_sample: u64,
     /// Connected stream clients.
     pub clients: usize,
-    /// Memory the session's pipeline may take at most (bytes), from its layout and settings
-    /// with every stream its cap allows: what the server's memory budget counts for it.
+    /// Memory the session's pipeline and the server's buffers around it may take at most
+    /// (bytes), from its layout and settings with every stream its cap allows: what the
+    /// server's memory budget counts for it.
     pub memory_bound_bytes: u64,
     /// Labels of the tracks that exist now.
     #[schema(schema_with = labels_schema)]

@@ -86,7 +86,7 @@ pub struct Snapshot {
     pub separation_queue_depth: i64,
     /// Tracks that exist now, summed over sessions.
     pub live_tracks: i64,
-    /// Memory the running sessions' pipelines may take at most, summed (bytes).
+    /// Memory the running sessions (pipelines and buffers) may take at most, summed (bytes).
     pub memory_bound_bytes: i64,
 }
 
@@ -173,8 +173,8 @@ impl ReadGauges {
             live_tracks: IntGauge::new("avsep_live_tracks", "Tracks that exist now")?,
             memory_bound_bytes: IntGauge::new(
                 "avsep_sessions_memory_bound_bytes",
-                "Memory the running sessions' pipelines may take at most, summed: what \
-                 limits.max_memory_mb bounds",
+                "Memory the running sessions (pipelines and buffers) may take at most, summed: \
+                 what limits.max_memory_mb bounds",
             )?,
             resident_bytes: IntGauge::new(
                 "avsep_process_resident_memory_bytes",
