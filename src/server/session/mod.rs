@@ -364,20 +364,18 @@ impl Session {
         }
     }
 
-    /// Queues input for the pipeline, or refuses it without blocking: invalid audio, audio out
-    /// of order, a full queue (`queue_full`) or a closed session. Refusals are counted.
+    /// Queues input for the pipeline, or refuses it without blocking: too many measurements,
+    /// invalid audio, audio out of order, a full queue (`queue_full`) or a closed session.
+    /// Refusals are counted.
     pub fn submit(&self, client: ClientId, input: Input) -> Result<(), Rejection> {
         let kind = input.kind();
-        let camera_frame = match &input {
-            Input::Detections(f) => Some(f.clone()),
-            _ => None,
-        };
-        let result = self.try_submit(client, input);
-        if let (Ok(()), Some(f)) = (&result, camera_frame)
-            && let Ok(mut latest) = self.latest_detections.lock()
-        {
-            latest.insert(f.camera, f);
-        }
+        let result = self.try_submit(client, input).map(|camera_frame| {
+            if let Some(f) = camera_frame
+                && let Ok(mut latest) = self.latest_detections.lock()
+            {
+                latest.insert(f.camera, f);
+            }
+        });
         match &result {
             Ok(()) => {
                 self.counters.accepted(kind);
@@ -388,7 +386,13 @@ impl Session {
         result
     }
 
-    fn try_submit(&self, client: ClientId, input: Input) -> Result<(), Rejection> {
+    /// Checks and queues `input`; a queued camera frame comes back, copied only once every
+    /// check has passed (a refused frame may be large).
+    fn try_submit(
+        &self,
+        client: ClientId,
+        input: Input,
+    ) -> Result<Option<DetectionFrame>, Rejection> {
         let mut inbox = self
             .inbox
             .lock()
@@ -402,11 +406,15 @@ impl Session {
             check_audio(&self.layout(), f.channels, &f.samples)?;
             audio_end = Some(self.check_audio_order(inbox.next_sample, f)?);
         }
+        let camera_frame = match &input {
+            Input::Detections(f) => Some(f.clone()),
+            _ => None,
+        };
         self.enqueue(&inbox, client, Work::Input(input))?;
         if let Some(end) = audio_end {
             inbox.next_sample = end;
         }
-        Ok(())
+        Ok(camera_frame)
     }
 
     /// Refuses a camera or device frame with more measurements than
