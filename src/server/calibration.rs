@@ -10,7 +10,6 @@ use crate::pipeline::PipelineConfig;
 use crate::protocol::rest::{ArrayCalibration, CameraCalibration, SessionInfo};
 use crate::scene::convert::{array_from_file, camera_from_file, layout_from_file, layout_to_file};
 use crate::scene::format::SceneFile;
-use crate::server::budget::session_bound;
 
 use super::app::AppState;
 use super::error::{ApiError, JsonBody, parse_json};
@@ -111,13 +110,7 @@ pub(super) async fn put_array(
         let e = crate::geometry::GeometryError::new("mics", e.message);
         ApiError::geometry(e, "")
     })?;
-    // A layout the settings cannot be built on is refused by the change itself, which names
-    // why; only one that could apply counts against the memory budget.
-    let cfg = app.registry.config();
-    let _admitted = match session_bound(&cfg.limits, &cfg.execution, &layout, &s.settings()) {
-        Ok(bound) => Some(app.registry.admit_memory(s.id(), bound)?),
-        Err(_) => None,
-    };
+    let _admitted = app.registry.admit_change(s.id(), &layout, &s.settings())?;
     s.recalibrate(layout).await?;
     Ok(Json(s.info()))
 }
@@ -235,14 +228,9 @@ pub(super) async fn patch_settings(
     s.limits()
         .check_settings(&settings)
         .map_err(|e| ApiError::config(e, ""))?;
-    // Settings no pipeline could use are refused by the change itself, which names why (a
-    // frame, which cannot change live, as not live); only a change that could apply counts
-    // against the memory budget.
-    let cfg = app.registry.config();
-    let _admitted = match session_bound(&cfg.limits, &cfg.execution, &s.layout(), &settings) {
-        Ok(bound) => Some(app.registry.admit_memory(s.id(), bound)?),
-        Err(_) => None,
-    };
+    // Settings no pipeline could use are refused by the change itself (a frame, which cannot
+    // change live, as not live), not by the budget.
+    let _admitted = app.registry.admit_change(s.id(), &s.layout(), &settings)?;
     s.configure(settings).await?;
     Ok(Json(s.settings()))
 }

@@ -9,7 +9,8 @@ use std::time::{Duration, Instant};
 
 use axum::http::StatusCode;
 
-use crate::pipeline::Pipeline;
+use crate::geometry::Layout;
+use crate::pipeline::{ConfigError, Pipeline, PipelineConfig};
 use crate::protocol::rest::{CreateSession, SessionState};
 use crate::scene::convert::{geometry_file, layout_from_file};
 use crate::server::budget::session_bound;
@@ -168,8 +169,8 @@ impl Registry {
         // another build panicked.
         let _building = self.building.lock().unwrap_or_else(|e| e.into_inner());
         let id = auth::new_session_id();
-        let cfg = &self.config;
-        let bound = session_bound(&cfg.limits, &cfg.execution, &layout, &settings)
+        let bound = self
+            .session_bound(&layout, &settings)
             .map_err(|e| ApiError::config(e, "settings"))?;
         let _admitted = self.admit_memory(&id, bound)?;
         // The id is 64 random bits in hex; it seeds the session unless the settings give a seed.
@@ -293,7 +294,33 @@ impl Registry {
         }
     }
 
-    /// Memory the pipelines of the sessions held may take at most, leaving out `except`'s,
+    /// The memory bound of a session on `layout` with `settings` under this server's limits
+    /// ([`session_bound`]).
+    fn session_bound(
+        &self,
+        layout: &Layout,
+        settings: &PipelineConfig,
+    ) -> Result<usize, ConfigError> {
+        let c = &self.config;
+        session_bound(&c.limits, &c.execution, layout, settings)
+    }
+
+    /// Admits a change of session `id`'s calibration or settings to `layout` and `settings`
+    /// ([`Registry::admit_memory`]). A change no pipeline could be built with is refused by the
+    /// change itself, which names why, so it is not admitted here (`None`).
+    pub fn admit_change(
+        &self,
+        id: &str,
+        layout: &Layout,
+        settings: &PipelineConfig,
+    ) -> Result<Option<MemoryReservation<'_>>, ApiError> {
+        match self.session_bound(layout, settings) {
+            Ok(bound) => self.admit_memory(id, bound).map(Some),
+            Err(_) => Ok(None),
+        }
+    }
+
+    /// Memory the sessions held (pipelines and buffers) may take at most, leaving out `except`'s,
     /// with the reservations `reserved`: a session counts at the larger of its bound and its
     /// reservation, a session being created at its reservation.
     fn memory_in_use(&self, reserved: &BTreeMap<String, usize>, except: Option<&str>) -> usize {
