@@ -176,6 +176,10 @@ pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport
         .collect();
     let mapping = map_sources(inputs, &labels, &streams, &refs, &sets);
     let ref_slices: Vec<&[f64]> = refs.iter().map(Vec::as_slice).collect();
+    // A source that never sounds (a person who stays silent) spans nothing: leaving it out of
+    // the BSS projections gives the same scores, and a scene with many silent people stays
+    // quick to score (the projection's cost grows with the cube of the sources).
+    let audible: Vec<bool> = refs.iter().map(|r| r.iter().any(|v| *v != 0.0)).collect();
     let block = ((cfg.continuity_block_s * inputs.sample_rate).round() as usize).max(1);
     let mut sources = Vec::new();
     for (i, src) in inputs.sources.iter().enumerate() {
@@ -185,7 +189,12 @@ pub fn score_audio(inputs: &AudioInputs, cfg: &EvalConfig) -> Result<AudioReport
             None => (None, None),
         };
         let est = label.map(|j| &streams[j]);
-        let system = BssSystem::new(&ref_slices, i, set, cfg.bss_filter_taps);
+        let members: Vec<&[f64]> = (0..refs.len())
+            .filter(|&j| j == i || audible[j])
+            .map(|j| ref_slices[j])
+            .collect();
+        let target = (0..i).filter(|&j| audible[j]).count();
+        let system = BssSystem::new(&members, target, set, cfg.bss_filter_taps);
         let score = |x: &[f64]| system.as_ref().map(|s| s.score(x));
         let si = |x: &[f64]| (!set.is_empty()).then(|| si_sdr(x, &refs[i], set));
         let si_est = est.and_then(|e| si(e));
@@ -451,6 +460,51 @@ mod tests {
         assert_eq!(rb.continuity.shares[0].label, Label::new(3, 0));
         assert_eq!(rb.continuity.blocks, 4);
         assert!(r.mean.si_sdr_improvement_db.is_some());
+    }
+
+    #[test]
+    fn a_silent_source_leaves_the_others_scores_unchanged() {
+        let fs = 1000.0;
+        let n = 3000;
+        let a = source("a", noise(n, 4), vec![(0.0, 3.0)]);
+        let b = source("b", noise(n, 5), vec![(0.0, 3.0)]);
+        let quiet = source("quiet", vec![0.0; n], vec![]);
+        let (sa, sb) = (a.signal.clone().unwrap(), b.signal.clone().unwrap());
+        let mix: Vec<f32> = sa.iter().zip(&sb).map(|(x, y)| x + y).collect();
+        let streams = BTreeMap::from([
+            (
+                Label::new(1, 0),
+                sa.iter().zip(&sb).map(|(x, y)| x + 0.3 * y).collect(),
+            ),
+            (
+                Label::new(2, 0),
+                sb.iter().zip(&sa).map(|(x, y)| x + 0.2 * y).collect(),
+            ),
+        ]);
+        let cfg = EvalConfig {
+            bss_filter_taps: 16,
+            ..Default::default()
+        };
+        let score = |sources: Vec<&TruthSource>| {
+            let inputs = AudioInputs {
+                sample_rate: fs,
+                sources,
+                streams: &streams,
+                mixture: Some(mix.clone()),
+                tracks: None,
+            };
+            score_audio(&inputs, &cfg).unwrap()
+        };
+        let (with, without) = (score(vec![&a, &quiet, &b]), score(vec![&a, &b]));
+        for (x, y) in [
+            (&with.sources[0], &without.sources[0]),
+            (&with.sources[2], &without.sources[1]),
+        ] {
+            let (bx, by) = (x.bss.unwrap(), y.bss.unwrap());
+            assert!((bx.sdr_db - by.sdr_db).abs() < 1e-9 && (bx.sir_db - by.sir_db).abs() < 1e-9);
+            assert_eq!(x.si_sdr_db, y.si_sdr_db);
+        }
+        assert!(with.sources[1].bss.is_none());
     }
 
     #[test]
