@@ -11,6 +11,8 @@ mod echoic;
 mod fixtures;
 #[path = "separate/lifecycle.rs"]
 mod lifecycle;
+#[path = "separate/resting.rs"]
+mod resting;
 #[path = "separate/scores.rs"]
 mod scores;
 #[path = "separate/sim.rs"]

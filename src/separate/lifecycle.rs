@@ -29,6 +29,15 @@ impl Timing {
             fade_out: frames(cfg.fade_out_s).max(1),
         }
     }
+
+    /// The rest envelope's timing: the same fades, with `rest_after_s` unheard as the grace.
+    /// `None` when labels never rest.
+    pub fn rest(cfg: &LifecycleConfig, frames_per_s: f64) -> Option<Self> {
+        (cfg.rest_after_s > 0.0).then(|| Self {
+            grace: (cfg.rest_after_s * frames_per_s).round().max(1.0) as usize,
+            ..Self::new(cfg, frames_per_s)
+        })
+    }
 }
 
 /// Where a stream is in its life.
@@ -45,6 +54,15 @@ impl Envelope {
     pub fn born() -> Self {
         Self {
             level: 0.0,
+            missing: 0,
+        }
+    }
+
+    /// A stream already at full gain (a new label counts as heard until it has been silent for
+    /// the rest envelope's grace).
+    pub fn open() -> Self {
+        Self {
+            level: 1.0,
             missing: 0,
         }
     }
@@ -118,6 +136,28 @@ mod tests {
         e.step(false, &t);
         assert_eq!(e.gain(), 0.0);
         assert!(e.is_dead(&t));
+    }
+
+    #[test]
+    fn an_open_envelope_stays_full_while_heard_and_fades_after_the_rest_time() {
+        let mut cfg = LifecycleConfig::default();
+        let rest = Timing::rest(&cfg, 31.25).unwrap();
+        assert_eq!(rest.grace, 156);
+        assert_eq!((rest.fade_in, rest.fade_out), (2, 2));
+        let mut e = Envelope::open();
+        assert_eq!(e.gain(), 1.0);
+        for _ in 0..rest.grace {
+            e.step(false, &rest);
+            assert_eq!(e.gain(), 1.0);
+        }
+        e.step(false, &rest);
+        e.step(false, &rest);
+        assert!(e.is_dead(&rest));
+        // Heard again: it fades back in.
+        e.step(true, &rest);
+        assert!(e.gain() > 0.0 && e.gain() < 1.0 && !e.is_dead(&rest));
+        cfg.rest_after_s = 0.0;
+        assert_eq!(Timing::rest(&cfg, 31.25), None);
     }
 
     #[test]

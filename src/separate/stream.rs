@@ -23,7 +23,14 @@ pub(super) struct Stream {
     /// Probability that the target talks this frame (speaking x activity); 1 while missing.
     pub presence: f64,
     pub envelope: Envelope,
-    /// This frame's envelope gain.
+    /// Whether the label is heard: open while it speaks, fading out once it has been unheard
+    /// for `rest_after_s` (the stream then rests) and back in when it speaks again.
+    pub rest: Envelope,
+    /// The target's speaking probability reached `wake_speaking` this frame (or is unknown).
+    pub heard: bool,
+    /// Resting without its per-bin state (released for a new label under the stream cap).
+    pub released: bool,
+    /// This frame's gain: the lifecycle envelope's times the rest envelope's.
     pub gain: f64,
     /// Index of the microphone group the beamformer runs on.
     pub group: usize,
@@ -88,6 +95,9 @@ impl Stream {
             direction_only,
             presence: 1.0,
             envelope: Envelope::born(),
+            rest: Envelope::open(),
+            released: false,
+            heard: true,
             gain: 0.0,
             group: 0,
             power: 0.0,
@@ -148,6 +158,33 @@ impl Stream {
             self.post.clear();
             self.post.resize(bins, PostState::default());
         }
+    }
+
+    /// Frees the per-bin state of a resting stream (its label, lifecycle and pitch history
+    /// stay); the next [`Stream::fit`] after waking sizes and resets it again.
+    pub fn release_state(&mut self) {
+        self.adaptive = Vec::new();
+        self.rls = Vec::new();
+        self.fixed_power = Vec::new();
+        self.post = Vec::new();
+        self.filters = Vec::new();
+        self.blocking = BlockingBank::default();
+        self.null_steering = Vec::new();
+        self.fit_memory = Vec::new();
+        self.constraints = Vec::new();
+        self.needs_reset = true;
+        self.released = true;
+    }
+
+    /// Readies a resting stream to run again: its steering is recomputed and its fixed
+    /// beamformers rebuilt, since the bank and the layout may have changed meanwhile.
+    pub fn wake(&mut self) {
+        self.released = false;
+        self.steering
+            .iter_mut()
+            .for_each(|st| *st = Steering::default());
+        self.steering_changed = true;
+        self.constraints_changed = true;
     }
 
     /// Initialises the adaptive state of every bin from the input power per bin.

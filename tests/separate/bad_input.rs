@@ -44,8 +44,12 @@ fn silent_clipped_and_nan_input_give_finite_output() {
     let targets = static_targets(&positions, 0.0);
     let n = 512 * 60;
     for kind in ["gsc", "mvdr", "null_steering", "delay_and_sum"] {
-        let cfg: SeparatorConfig =
-            serde_json::from_str(&format!(r#"{{"beamformer": "{kind}"}}"#)).unwrap();
+        // The targets read silent, so the cancellers adapt on every frame; they must not
+        // rest meanwhile.
+        let cfg: SeparatorConfig = serde_json::from_str(&format!(
+            r#"{{"beamformer": "{kind}", "lifecycle": {{"rest_after_s": 0}}}}"#
+        ))
+        .unwrap();
         // Silence: exactly silent output.
         let mut sep = Separator::new(&layout, &cfg).unwrap();
         let outs = feed(&mut sep, &vec![vec![0.0; n]; 8], &targets);

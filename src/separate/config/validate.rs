@@ -198,6 +198,8 @@ impl LifecycleConfig {
         in_range("fade_in_s", self.fade_in_s, 0.0, 10.0)?;
         in_range("grace_s", self.grace_s, 0.0, 60.0)?;
         in_range("fade_out_s", self.fade_out_s, 0.0, 10.0)?;
+        in_range("rest_after_s", self.rest_after_s, 0.0, 3600.0)?;
+        in_range("wake_speaking", self.wake_speaking, 0.0, 1.0)?;
         ConfigError::check(
             (1..=1024).contains(&self.max_streams),
             "max_streams",

@@ -6,53 +6,119 @@ use crate::dsp::Complex;
 use crate::separate::Target;
 use crate::separate::blocking::BlockingBank;
 use crate::separate::config::MicSelection;
+use crate::separate::lifecycle::{Envelope, Timing};
 use crate::separate::null_steering::NullSteering;
 use crate::separate::postfilter::PostState;
 use crate::separate::steering::Steering;
 use crate::separate::stream::Stream;
 
 impl Separator {
-    /// Births, updates and absences from this frame's targets.
+    /// Births, updates and absences from this frame's targets; then streams rest or wake.
     pub(super) fn update_bank(&mut self, targets: &[Target]) {
         let present = &mut self.work.present;
         present.clear();
         present.resize(self.streams.len(), false);
+        let resting_present = &mut self.work.resting_present;
+        resting_present.clear();
+        resting_present.resize(self.resting.len(), false);
+        let wake = self.cfg.lifecycle.wake_speaking;
         for (i, t) in targets.iter().enumerate() {
             if targets[..i].iter().any(|u| u.label == t.label) {
                 continue;
             }
             let finite = t.position.iter().all(|v| v.is_finite());
-            let presence = presence_of(t);
-            match self.streams.iter().position(|s| s.label == t.label) {
-                Some(j) => {
-                    if finite {
-                        self.streams[j].position = t.position;
-                        self.streams[j].direction_only = t.direction_only;
-                    }
-                    self.streams[j].presence = presence;
-                    self.streams[j].known_pitch = t.pitch;
-                    present[j] = true;
-                }
+            if let Some(j) = self.streams.iter().position(|s| s.label == t.label) {
+                follow(&mut self.streams[j], t, finite, wake);
+                self.work.present[j] = true;
+            } else if let Some(j) = self.resting.iter().position(|s| s.label == t.label) {
+                follow(&mut self.resting[j], t, finite, wake);
+                self.work.resting_present[j] = true;
+            } else if finite && self.make_room() {
                 // Past the cap a label waits, unseparated, for a stream to be dropped.
-                None if finite && self.streams.len() < self.cfg.lifecycle.max_streams => {
-                    let mut s =
-                        Stream::new(t.label, t.position, t.direction_only, self.groups.len());
-                    s.presence = presence;
-                    s.known_pitch = t.pitch;
-                    self.streams.push(s);
-                    present.push(true);
-                }
-                None => {}
+                let mut s = Stream::new(t.label, t.position, t.direction_only, self.groups.len());
+                follow(&mut s, t, true, wake);
+                self.streams.push(s);
+                self.work.present.push(true);
             }
         }
-        for (s, &p) in self.streams.iter_mut().zip(present.iter()) {
+        for (s, &p) in self.streams.iter_mut().zip(self.work.present.iter()) {
             s.envelope.step(p, &self.timing);
-            s.gain = s.envelope.gain();
+            if let (true, Some(rest)) = (p, &self.rest_timing) {
+                s.rest.step(s.heard, rest);
+            }
+            s.gain = s.envelope.gain() * s.rest.gain();
             if !p {
                 // Steering at a stale position: do not learn.
                 s.presence = 1.0;
                 s.known_pitch = None;
             }
+        }
+        self.rest_and_wake();
+    }
+
+    /// Moves the streams unheard for `rest_after_s` (faded to silence) to the resting set, and
+    /// the resting ones heard again back to the bank (fading in), room permitting.
+    fn rest_and_wake(&mut self) {
+        let Some(rest) = self.rest_timing else {
+            // Resting was turned off: every resting label is heard again.
+            for s in &mut self.resting {
+                s.rest = Envelope::open();
+                s.heard = true;
+            }
+            return self.wake_resting(None);
+        };
+        self.wake_resting(Some(&rest));
+        let mut i = 0;
+        while i < self.streams.len() {
+            if self.streams[i].rest.is_dead(&rest) {
+                let s = self.streams.remove(i);
+                self.work.present.remove(i);
+                self.resting.push(s);
+            } else {
+                i += 1;
+            }
+        }
+    }
+
+    /// Moves the resting streams whose labels are heard back to the bank (fading in under
+    /// `rest`; at full gain without one), room permitting.
+    fn wake_resting(&mut self, rest: Option<&Timing>) {
+        let mut i = 0;
+        while i < self.resting.len() {
+            let p = self.work.resting_present[i];
+            let s = &mut self.resting[i];
+            s.envelope.step(p, &self.timing);
+            let wakes = p && s.heard && !s.envelope.is_dead(&self.timing);
+            let released = s.released;
+            if wakes && (!released || self.make_room()) {
+                let mut s = self.resting.remove(i);
+                self.work.resting_present.remove(i);
+                s.wake();
+                if let Some(rest) = rest {
+                    s.rest.step(true, rest);
+                }
+                s.gain = s.envelope.gain() * s.rest.gain();
+                self.streams.push(s);
+                self.work.present.push(true);
+            } else {
+                i += 1;
+            }
+        }
+    }
+
+    /// Whether one more stream may hold per-bin state. At the cap, the stream that has rested
+    /// longest gives its state up (it stays, silent, as a label that may wake).
+    fn make_room(&mut self) -> bool {
+        let held = self.streams.len() + self.resting.iter().filter(|s| !s.released).count();
+        if held < self.cfg.lifecycle.max_streams {
+            return true;
+        }
+        match self.resting.iter_mut().find(|s| !s.released) {
+            Some(s) => {
+                s.release_state();
+                true
+            }
+            None => false,
         }
     }
 
@@ -246,6 +312,18 @@ fn nearest_group(groups: &[MicGroup], s: &Stream) -> usize {
     } else {
         best
     }
+}
+
+/// Takes a target's position (when finite), presence, pitch and whether it is heard.
+fn follow(s: &mut Stream, t: &Target, finite: bool, wake: f64) {
+    if finite {
+        s.position = t.position;
+        s.direction_only = t.direction_only;
+    }
+    s.presence = presence_of(t);
+    s.known_pitch = t.pitch;
+    // Unknown speaking (NaN) counts as heard: nothing rests on no evidence.
+    s.heard = t.speaking.is_nan() || t.speaking >= wake;
 }
 
 /// Presence of a target's speech this frame; unknown (NaN) counts as talking, so nothing is

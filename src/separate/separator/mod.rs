@@ -135,6 +135,8 @@ struct Work {
     fit_weight: Vec<f64>,
     energy: Vec<f64>,
     present: Vec<bool>,
+    /// Per resting stream: whether its label is among this frame's targets.
+    resting_present: Vec<bool>,
 }
 
 /// A bank of per-label beamformers with a time-frequency post-filter.
@@ -159,6 +161,8 @@ pub struct Separator {
     k_demix: usize,
     domega: f64,
     timing: Timing,
+    /// The rest envelope's timing (`None`: labels never rest).
+    rest_timing: Option<Timing>,
     post: PostFilter,
     harmonic: Harmonic,
     /// The harmonic grouping's amplitude fit of the low bins (fits nothing when off).
@@ -173,6 +177,9 @@ pub struct Separator {
     /// Smoothed power of the reference microphone per bin (post-filter).
     ref_power: Vec<f64>,
     streams: Vec<Stream>,
+    /// Streams whose labels have not been heard for `rest_after_s`: silent, not processed, in
+    /// the order they came to rest.
+    resting: Vec<Stream>,
     /// Labels and groups of the bank at the last frame (a change rebuilds the fixed beamformers).
     last_bank: Vec<(Label, usize)>,
     record: bool,
@@ -201,6 +208,7 @@ impl Separator {
                 grace: 0,
                 fade_out: 1,
             },
+            rest_timing: None,
             post: PostFilter::new(&cfg.post_filter, 1.0),
             harmonic: Harmonic::new(&cfg.post_filter.harmonic, 1.0, 1.0),
             harmonic_fit: HarmonicFit::default(),
@@ -210,6 +218,7 @@ impl Separator {
             psd_ready: false,
             ref_power: Vec::new(),
             streams: Vec::new(),
+            resting: Vec::new(),
             last_bank: Vec::new(),
             record: false,
             work: Work::default(),
@@ -229,9 +238,18 @@ impl Separator {
         &self.cfg
     }
 
-    /// Labels that currently have a stream, in birth order.
+    /// Labels that currently have a stream: the running ones, then the resting ones.
     pub fn labels(&self) -> Vec<Label> {
-        self.streams.iter().map(|s| s.label).collect()
+        self.streams
+            .iter()
+            .chain(&self.resting)
+            .map(|s| s.label)
+            .collect()
+    }
+
+    /// Labels whose streams rest (silent, not processed) until they are heard again.
+    pub fn resting_labels(&self) -> Vec<Label> {
+        self.resting.iter().map(|s| s.label).collect()
     }
 
     /// Recalibration: new microphone or reference positions. The bank and its labels are kept; a
@@ -250,7 +268,7 @@ impl Separator {
         let reset = cfg.beamformer != self.cfg.beamformer || cfg.mics != self.cfg.mics;
         self.cfg = cfg.clone();
         if reset {
-            for s in &mut self.streams {
+            for s in self.streams.iter_mut().chain(&mut self.resting) {
                 s.needs_reset = true;
             }
         }
@@ -284,8 +302,8 @@ impl Separator {
         out: &mut Vec<(Label, Vec<Complex>)>,
     ) {
         let (bins, ch) = (self.bins, self.channels);
-        resize_outputs(out, self.streams.len(), bins);
-        for (s, (label, o)) in self.streams.iter().zip(out.iter_mut()) {
+        resize_outputs(out, self.streams.len() + self.resting.len(), bins);
+        for (s, (label, o)) in self.streams.iter().chain(&self.resting).zip(out.iter_mut()) {
             *label = s.label;
             o.fill(Complex::new(0.0, 0.0));
             if s.filters.len() != bins * ch {
@@ -326,15 +344,22 @@ impl Separator {
         self.load_input(spectra);
         self.update_bank(targets);
         self.prepare_streams();
-        resize_outputs(out, self.streams.len(), self.bins);
+        let n = self.streams.len();
+        resize_outputs(out, n + self.resting.len(), self.bins);
         for (s, (label, o)) in self.streams.iter().zip(out.iter_mut()) {
             *label = s.label;
             o[..self.k_lo].fill(Complex::new(0.0, 0.0));
             o[self.k_hi..].fill(Complex::new(0.0, 0.0));
         }
-        self.run_bins(out);
+        // A resting stream carries silence, so its label's output stays continuous.
+        for (s, (label, o)) in self.resting.iter().zip(out[n..].iter_mut()) {
+            *label = s.label;
+            o.fill(Complex::new(0.0, 0.0));
+        }
+        self.run_bins(&mut out[..n]);
         let t = self.timing;
         self.streams.retain(|s| !s.envelope.is_dead(&t));
+        self.resting.retain(|s| !s.envelope.is_dead(&t));
     }
 
     fn apply_layout(&mut self, layout: &Layout) -> Result<(), ConfigError> {
@@ -387,14 +412,14 @@ impl Separator {
         self.work.rebuild.resize(n, true);
         // New microphone positions or settings: nothing cached holds.
         self.last_bank.clear();
-        for s in &mut self.streams {
+        for s in self.streams.iter_mut().chain(&mut self.resting) {
             s.steering_changed = true;
             s.constraints_changed = true;
             s.steering
                 .iter_mut()
                 .for_each(|st| *st = Steering::default());
         }
-        for s in &mut self.streams {
+        for s in self.streams.iter_mut().chain(&mut self.resting) {
             s.steering.resize(n, Default::default());
         }
     }
@@ -406,7 +431,7 @@ impl Separator {
             self.psd = vec![0.0; bins];
             self.ref_power = vec![0.0; bins];
             self.psd_ready = false;
-            for s in &mut self.streams {
+            for s in self.streams.iter_mut().chain(&mut self.resting) {
                 s.needs_reset = true;
             }
         }
@@ -421,6 +446,7 @@ impl Separator {
             ((self.cfg.post_filter.demix_below_hz / hz_per_bin).ceil() as usize).min(self.k_hi);
         let frames_per_s = self.fs / geom.hop as f64;
         self.timing = Timing::new(&self.cfg.lifecycle, frames_per_s);
+        self.rest_timing = Timing::rest(&self.cfg.lifecycle, frames_per_s);
         self.post = PostFilter::new(&self.cfg.post_filter, frames_per_s);
         self.harmonic = Harmonic::new(&self.cfg.post_filter.harmonic, hz_per_bin, frames_per_s);
         let hcfg = &self.cfg.post_filter.harmonic;
