@@ -24,6 +24,8 @@ pub struct NullSteering {
     t: Vec<Complex>,
     scale: Vec<f64>,
     eps: f64,
+    /// The first column's weights, kept by [`NullSteering::prepare_first`].
+    first: Vec<Complex>,
 }
 
 impl NullSteering {
@@ -42,6 +44,27 @@ impl NullSteering {
             (4, _) => self.prepare_sized(d, 4, m, loading),
             _ => self.prepare_sized(d, n, m, loading),
         }
+    }
+
+    /// Prepares the weights for `d` as [`NullSteering::prepare`] does and keeps the first
+    /// column's, for a label whose constraint set is its own (itself first): its output is then
+    /// m products per frame instead of the whole system's n m + n^2.
+    pub fn prepare_first(&mut self, d: &[Complex], n: usize, m: usize, loading: f64) {
+        self.prepare(d, n, m, loading);
+        let mut w = std::mem::take(&mut self.first);
+        w.resize(m, Complex::new(0.0, 0.0));
+        self.weights(d, m, 0, &mut w);
+        self.first = w;
+    }
+
+    /// W_0^H y with the weights kept by [`NullSteering::prepare_first`].
+    pub fn first_output(&self, y: &[Complex]) -> Complex {
+        self.first.iter().zip(y).map(|(w, y)| w.conj() * y).sum()
+    }
+
+    /// The weights kept by [`NullSteering::prepare_first`].
+    pub fn first_weights(&self) -> &[Complex] {
+        &self.first
     }
 
     #[inline(always)]
@@ -265,6 +288,16 @@ mod tests {
                 let mut out = vec![Complex::new(0.0, 0.0); 3];
                 ns.outputs(&d, 8, &y, &mut out);
                 assert!((out[i] - response(&w, &y)).norm() < 1e-9);
+                // So do the kept first-column weights, with the label's column first.
+                let mut own = d[i * 8..(i + 1) * 8].to_vec();
+                own.extend(
+                    (0..3)
+                        .filter(|&j| j != i)
+                        .flat_map(|j| d[j * 8..(j + 1) * 8].to_vec()),
+                );
+                let mut first = NullSteering::default();
+                first.prepare_first(&own, 3, 8, 1e-2);
+                assert!((first.first_output(&y) - out[i]).norm() < 1e-9);
             }
         }
     }

@@ -2,6 +2,10 @@
 //! microphone group, steering (kept while it moves less than the tolerance) and null constraints.
 
 use super::{MicGroup, SWITCH_RATIO, Separator};
+
+/// A label outside a capped null set replaces one of its members only when its power exceeds
+/// the quietest member's by this factor (3 dB).
+const SWAP_RATIO: f64 = 2.0;
 use crate::dsp::Complex;
 use crate::separate::Target;
 use crate::separate::blocking::BlockingBank;
@@ -254,6 +258,23 @@ impl Separator {
                     .then(a.cmp(&b))
             });
             order.truncate(m - 1);
+            // Keep the set while no other label is clearly louder than its quietest member:
+            // near-silent labels reorder every frame, and each new set rebuilds the label's
+            // fixed beamformers in every bin. Stream indices hold while the bank is unchanged.
+            let current = &self.streams[i].constraints;
+            if !bank_changed && current.len() == m && current[0] == i {
+                let kept = &current[1..];
+                let power = |j: usize| self.streams[j].power;
+                let quietest = kept.iter().map(|&j| power(j)).fold(f64::INFINITY, f64::min);
+                let louder = order
+                    .iter()
+                    .filter(|j| !kept.contains(j))
+                    .any(|&j| power(j) > SWAP_RATIO * quietest);
+                if !louder {
+                    order.clear();
+                    order.extend_from_slice(kept);
+                }
+            }
             order.insert(0, i);
             // Any steering moved on the group: its columns may be among this stream's.
             let moved = w.rebuild[g];

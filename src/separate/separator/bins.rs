@@ -124,17 +124,17 @@ impl Separator {
                     if s.group != g {
                         continue;
                     }
-                    let nc = s.constraints.len();
-                    w.dsub.resize(nc * m, Complex::new(0.0, 0.0));
-                    for (j, &c) in s.constraints.iter().enumerate() {
-                        w.dsub[j * m..(j + 1) * m].copy_from_slice(&w.walk[g][c * m..(c + 1) * m]);
-                    }
                     let ns = &mut s.null_steering[k];
                     if s.constraints_changed {
-                        ns.prepare(&w.dsub, nc, m, loading);
+                        let nc = s.constraints.len();
+                        w.dsub.resize(nc * m, Complex::new(0.0, 0.0));
+                        for (j, &c) in s.constraints.iter().enumerate() {
+                            w.dsub[j * m..(j + 1) * m]
+                                .copy_from_slice(&w.walk[g][c * m..(c + 1) * m]);
+                        }
+                        ns.prepare_first(&w.dsub, nc, m, loading);
                     }
-                    ns.outputs(&w.dsub, m, &w.yg[g], &mut w.ns_out);
-                    w.fixed[i] = w.ns_out[0];
+                    w.fixed[i] = ns.first_output(&w.yg[g]);
                 }
             }
         }
@@ -245,11 +245,7 @@ impl Separator {
                 if w.shared[s.group] {
                     w.ns_bins[s.group][k].weights(&w.walk[s.group], m, i, weights);
                 } else {
-                    for (j, &c) in s.constraints.iter().enumerate() {
-                        w.dsub[j * m..(j + 1) * m]
-                            .copy_from_slice(&w.walk[s.group][c * m..(c + 1) * m]);
-                    }
-                    s.null_steering[k].weights(&w.dsub, m, 0, weights);
+                    weights.copy_from_slice(s.null_steering[k].first_weights());
                 }
                 if kind == BeamformerKind::Gsc {
                     for (o, bv) in weights.iter_mut().zip(&w.w2[..m]) {
