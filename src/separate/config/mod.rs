@@ -291,8 +291,11 @@ pub struct LifecycleConfig {
     /// +9.09 / 1.167 / 61; paper-linear6 seeds 1-48 +7.88 / 1.153 / 33, unchanged; recorded
     /// paper-linear6 seeds 1-36 +6.45 / 1.111 / 15 against +6.44. Shorter costs the talkers'
     /// returns on paper-linear6: 3 s +7.84 / 1.167 / 38, 2 s +7.25 / 1.250 / 61. On uca8 seed 1
-    /// with 10 (30) static false faces in every camera frame: +6.31 (+2.32) dB against +5.51
-    /// (+0.71), in 1.1 s (3.7 s) of one core for the 20 s against 3.5 s (7.8 s).
+    /// with 10 (30) static false faces in every camera frame: +6.30 (+2.51) dB against +5.74
+    /// (+0.80), in 1.1 s (3.3 s) of one core for the 20 s against 3.1 s (6.4 s); with 10 (30)
+    /// simulated people who never speak +5.09 (-4.78) dB against +5.05 (-1.57), in 2.4 s
+    /// (6.7 s) against 7.3 s (9.4 s): in the 30-people room the tracker gives a talker's voice
+    /// to a silent neighbour's label, and the talker's own label rests.
     pub rest_after_s: f64,
     /// The speaking probability (the target's `speaking`) at which a label counts as heard,
     /// which keeps a stream awake or wakes a resting one. Unknown speaking counts as heard.
