@@ -1,5 +1,6 @@
 //! Speed of the separator: one hop (1024-sample frame, 512 hop, 16 kHz) with 8 microphones and 3
-//! labels, post-filter on, for each beamformer.
+//! labels, post-filter on, for each beamformer; and with 13 silent faces beside the 3 talkers,
+//! running (a crowded session's first seconds) and resting.
 
 use std::hint::black_box;
 
@@ -81,7 +82,9 @@ fn bench(c: &mut Criterion) {
         ("null_steering", r#"{"beamformer": "null_steering"}"#, 0.0),
         ("delay_and_sum", r#"{"beamformer": "delay_and_sum"}"#, 0.0),
     ] {
-        let cfg: SeparatorConfig = serde_json::from_str(json).unwrap();
+        let mut cfg: SeparatorConfig = serde_json::from_str(json).unwrap();
+        // The adapting labels read silent, so that their cancellers adapt: they must not rest.
+        cfg.lifecycle.rest_after_s = 0.0;
         let mut sep = Separator::new(&layout, &cfg).unwrap();
         let input = frames(64, sep.frame_geometry().bins());
         let mut out = Vec::new();
@@ -99,6 +102,54 @@ fn bench(c: &mut Criterion) {
                 black_box(&out);
             })
         });
+    }
+}
+
+/// Three talking labels and 13 silent faces around the array: 16 labels on 8 microphones, so
+/// each label nulls its 7 loudest others. `running`: the faces have not been silent long enough
+/// to rest (`rest_after_s = 0` keeps them so); `resting`: past `rest_after_s`.
+fn bench_crowd(c: &mut Criterion) {
+    let layout = layout();
+    let crowd = |f: usize| -> Vec<Target> {
+        let mut t = targets(f, 1.0);
+        t.extend((0..13).map(|i| {
+            let a = 2.0 * std::f64::consts::PI * f64::from(i) / 13.0 + 0.1;
+            Target {
+                label: Label::new(1, i),
+                position: Vec3::new(2.0 * a.cos(), 2.0 * a.sin(), 1.5),
+                direction_only: false,
+                speaking: 0.0,
+                activity: 1.0,
+                pitch: None,
+            }
+        }));
+        t
+    };
+    for (name, json) in [
+        ("running", r#"{"lifecycle": {"rest_after_s": 0}}"#),
+        ("resting", r#"{}"#),
+    ] {
+        let cfg: SeparatorConfig = serde_json::from_str(json).unwrap();
+        let mut sep = Separator::new(&layout, &cfg).unwrap();
+        let input = frames(64, sep.frame_geometry().bins());
+        let mut out = Vec::new();
+        let mut f = 0usize;
+        // Past the faces' rest time (5 s is 157 hops) and fade-out.
+        for _ in 0..200 {
+            sep.process_into(&input[f % 64], &crowd(f), &mut out);
+            f += 1;
+        }
+        c.bench_function(
+            &format!("separate/hop_8mics_3talkers_13faces/{name}"),
+            |b| {
+                b.iter(|| {
+                    let t = crowd(f);
+                    sep.process_into(black_box(&input[f % 64]), &t, &mut out);
+                    f += 1;
+                    black_box(&out);
+                })
+            },
+        );
     }
 }
 
@@ -131,7 +182,7 @@ fn bench_fit(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, bench, bench_fit);
+criterion_group!(benches, bench, bench_crowd, bench_fit);
 
 /// `AVSEP_SEPARATE_ITERS=n` runs n hops of the default (adapting GSC) without criterion, for
 /// measuring CPU time with `perf stat` on a loaded machine.
@@ -141,7 +192,8 @@ fn main() {
         .and_then(|v| v.parse::<usize>().ok())
     {
         let json = std::env::var("AVSEP_SEPARATE_CONFIG").unwrap_or_else(|_| "{}".into());
-        let cfg: SeparatorConfig = serde_json::from_str(&json).unwrap();
+        let mut cfg: SeparatorConfig = serde_json::from_str(&json).unwrap();
+        cfg.lifecycle.rest_after_s = 0.0;
         let mut sep = Separator::new(&layout(), &cfg).unwrap();
         let input = frames(64, sep.frame_geometry().bins());
         let ts: Vec<Vec<Target>> = (0..64).map(|f| targets(f, 0.0)).collect();
