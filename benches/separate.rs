@@ -62,7 +62,6 @@ fn targets(frame: usize, speaking: f64) -> Vec<Target> {
 }
 
 fn bench(c: &mut Criterion) {
-    let layout = layout();
     for (name, json, speaking) in [
         ("gsc_adapting", r#"{}"#, 0.0),
         ("gsc_frozen", r#"{}"#, 1.0),
@@ -85,31 +84,42 @@ fn bench(c: &mut Criterion) {
         let mut cfg: SeparatorConfig = serde_json::from_str(json).unwrap();
         // The adapting labels read silent, so that their cancellers adapt: they must not rest.
         cfg.lifecycle.rest_after_s = 0.0;
-        let mut sep = Separator::new(&layout, &cfg).unwrap();
-        let input = frames(64, sep.frame_geometry().bins());
-        let mut out = Vec::new();
-        let mut f = 0usize;
         // Warm up past the fade-in so every label runs at full strength.
-        for _ in 0..10 {
-            sep.process_into(&input[f % 64], &targets(f, speaking), &mut out);
-            f += 1;
-        }
-        c.bench_function(&format!("separate/hop_8mics_3labels/{name}"), |b| {
-            b.iter(|| {
-                let t = targets(f, speaking);
-                sep.process_into(black_box(&input[f % 64]), &t, &mut out);
-                f += 1;
-                black_box(&out);
-            })
-        });
+        let name = format!("separate/hop_8mics_3labels/{name}");
+        bench_hops(c, &name, &cfg, 10, |f| targets(f, speaking));
     }
+}
+
+/// Benchmarks one hop of a separator with `cfg` on random-phase input after `warm_up` hops,
+/// with `targets(hop)`.
+fn bench_hops(
+    c: &mut Criterion,
+    name: &str,
+    cfg: &SeparatorConfig,
+    warm_up: usize,
+    targets: impl Fn(usize) -> Vec<Target>,
+) {
+    let mut sep = Separator::new(&layout(), cfg).unwrap();
+    let input = frames(64, sep.frame_geometry().bins());
+    let mut out = Vec::new();
+    for f in 0..warm_up {
+        sep.process_into(&input[f % 64], &targets(f), &mut out);
+    }
+    let mut f = warm_up;
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            let t = targets(f);
+            sep.process_into(black_box(&input[f % 64]), &t, &mut out);
+            f += 1;
+            black_box(&out);
+        })
+    });
 }
 
 /// Three talking labels and 13 silent faces around the array: 16 labels on 8 microphones, so
 /// each label nulls its 7 loudest others. `running`: the faces have not been silent long enough
 /// to rest (`rest_after_s = 0` keeps them so); `resting`: past `rest_after_s`.
 fn bench_crowd(c: &mut Criterion) {
-    let layout = layout();
     let crowd = |f: usize| -> Vec<Target> {
         let mut t = targets(f, 1.0);
         t.extend((0..13).map(|i| {
@@ -130,26 +140,9 @@ fn bench_crowd(c: &mut Criterion) {
         ("resting", r#"{}"#),
     ] {
         let cfg: SeparatorConfig = serde_json::from_str(json).unwrap();
-        let mut sep = Separator::new(&layout, &cfg).unwrap();
-        let input = frames(64, sep.frame_geometry().bins());
-        let mut out = Vec::new();
-        let mut f = 0usize;
         // Past the faces' rest time (5 s is 157 hops) and fade-out.
-        for _ in 0..200 {
-            sep.process_into(&input[f % 64], &crowd(f), &mut out);
-            f += 1;
-        }
-        c.bench_function(
-            &format!("separate/hop_8mics_3talkers_13faces/{name}"),
-            |b| {
-                b.iter(|| {
-                    let t = crowd(f);
-                    sep.process_into(black_box(&input[f % 64]), &t, &mut out);
-                    f += 1;
-                    black_box(&out);
-                })
-            },
-        );
+        let name = format!("separate/hop_8mics_3talkers_13faces/{name}");
+        bench_hops(c, &name, &cfg, 200, crowd);
     }
 }
 

@@ -180,6 +180,12 @@ impl Stream {
     /// beamformers rebuilt, since the bank and the layout may have changed meanwhile.
     pub fn wake(&mut self) {
         self.released = false;
+        self.forget_steering();
+    }
+
+    /// Drops the steering in use, so that the next frame computes it afresh and rebuilds the
+    /// beamformers on it.
+    pub fn forget_steering(&mut self) {
         self.steering
             .iter_mut()
             .for_each(|st| *st = Steering::default());

@@ -4,7 +4,7 @@ use avsep::dsp::Complex;
 use avsep::geometry::Vec3;
 use avsep::separate::{Separator, SeparatorConfig};
 
-use crate::fixtures::{FS, free_field, layout_of, run, static_targets, uca};
+use crate::fixtures::{FS, Quiet, free_field, layout_of, run, static_targets, uca};
 use crate::scores::{db, energy, energy_c};
 
 fn tones(n: usize, freqs: &[f64], amp: f64) -> Vec<f64> {
@@ -174,28 +174,15 @@ fn past_the_stream_cap_a_label_waits_for_a_dropped_stream() {
     cfg.lifecycle.max_streams = 2;
     let mut sep = Separator::new(&layout_of(&mics), &cfg).unwrap();
     let g = sep.frame_geometry();
-    let mut stft = avsep::dsp::StreamingStft::new(g, mics.len());
-    let quiet = vec![vec![0.0; g.hop]; mics.len()];
-    let refs: Vec<&[f64]> = quiet.iter().map(|v| v.as_slice()).collect();
+    let mut quiet = Quiet::new(&sep, mics.len());
     let spots: Vec<Vec3> = (0..4)
         .map(|i| centre + Vec3::new(1.5, -1.0 + 0.6 * f64::from(i), 0.2))
         .collect();
     let all = static_targets(&spots, 1.0);
-    let mut out = Vec::new();
-    let mut labels_after = |sep: &mut Separator, targets: &[_], frames: usize| {
-        for _ in 0..frames {
-            let spec = stft.push(&refs).clone();
-            sep.process_into(&spec, targets, &mut out);
-        }
-        out.iter().map(|(l, _)| *l).collect::<Vec<_>>()
-    };
-    assert_eq!(
-        labels_after(&mut sep, &all, 10),
-        [all[0].label, all[1].label]
-    );
+    assert_eq!(quiet.feed(&mut sep, &all, 10), [all[0].label, all[1].label]);
     // The first label leaves: after its grace and fade-out (0.32 s) the third takes its place.
     let rest = all[1..].to_vec();
-    let later = labels_after(&mut sep, &rest, (0.5 * FS) as usize / g.hop);
+    let later = quiet.feed(&mut sep, &rest, (0.5 * FS) as usize / g.hop);
     assert_eq!(later, [all[1].label, all[2].label]);
     assert_eq!(sep.labels().len(), 2);
 }

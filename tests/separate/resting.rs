@@ -4,7 +4,7 @@
 use avsep::geometry::Vec3;
 use avsep::separate::{Separator, SeparatorConfig, Target};
 
-use crate::fixtures::{FS, band_noise, free_field, layout_of, run, static_targets, uca};
+use crate::fixtures::{FS, Quiet, band_noise, free_field, layout_of, run, static_targets, uca};
 use crate::scores::{db, energy};
 
 fn max_step(x: &[f64]) -> f64 {
@@ -119,22 +119,16 @@ fn at_the_stream_cap_a_new_label_takes_a_resting_labels_state() {
     cfg.lifecycle.max_streams = 2;
     cfg.lifecycle.rest_after_s = 0.3;
     let mut sep = Separator::new(&layout_of(&mics), &cfg).unwrap();
-    let g = sep.frame_geometry();
-    let frames = |s: f64| (s * FS / g.hop as f64).round() as usize;
-    let mut stft = avsep::dsp::StreamingStft::new(g, mics.len());
-    let quiet = vec![vec![0.0; g.hop]; mics.len()];
-    let refs: Vec<&[f64]> = quiet.iter().map(|v| v.as_slice()).collect();
+    let hop = sep.frame_geometry().hop as f64;
+    let mut quiet = Quiet::new(&sep, mics.len());
+    let mut run_for = |sep: &mut Separator, targets: &[Target], s: f64| {
+        quiet.feed(sep, targets, (s * FS / hop).round() as usize);
+    };
     let spots: Vec<Vec3> = (0..3)
         .map(|i| centre + Vec3::new(1.5, -1.0 + 0.8 * f64::from(i), 0.2))
         .collect();
     let all = static_targets(&spots, 0.0);
     let (a, b, c) = (all[0].label, all[1].label, all[2].label);
-    let mut run_for = |sep: &mut Separator, targets: &[Target], s: f64| {
-        for _ in 0..frames(s) {
-            let spec = stft.push(&refs).clone();
-            sep.process(&spec, targets);
-        }
-    };
     let mut heard = all.clone();
     heard[0].speaking = 1.0;
     // B is never heard: after 0.3 s and its fade it rests, keeping its state.

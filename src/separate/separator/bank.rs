@@ -2,10 +2,6 @@
 //! microphone group, steering (kept while it moves less than the tolerance) and null constraints.
 
 use super::{MicGroup, SWITCH_RATIO, Separator};
-
-/// A label outside a capped null set replaces one of its members only when its power exceeds
-/// the quietest member's by this factor (3 dB).
-const SWAP_RATIO: f64 = 2.0;
 use crate::dsp::Complex;
 use crate::separate::Target;
 use crate::separate::blocking::BlockingBank;
@@ -15,6 +11,10 @@ use crate::separate::null_steering::NullSteering;
 use crate::separate::postfilter::PostState;
 use crate::separate::steering::Steering;
 use crate::separate::stream::Stream;
+
+/// A label outside a capped null set replaces one of its members only when its power exceeds
+/// the quietest member's by this factor (3 dB).
+const SWAP_RATIO: f64 = 2.0;
 
 impl Separator {
     /// Births, updates and absences from this frame's targets; then streams rest or wake.
@@ -92,7 +92,8 @@ impl Separator {
             let p = self.work.resting_present[i];
             let s = &mut self.resting[i];
             s.envelope.step(p, &self.timing);
-            let wakes = p && s.heard && !s.envelope.is_dead(&self.timing);
+            // A present label's envelope has just been reset, so it cannot be dead.
+            let wakes = p && s.heard;
             let released = s.released;
             if wakes && (!released || self.make_room()) {
                 let mut s = self.resting.remove(i);

@@ -413,13 +413,7 @@ impl Separator {
         // New microphone positions or settings: nothing cached holds.
         self.last_bank.clear();
         for s in self.streams.iter_mut().chain(&mut self.resting) {
-            s.steering_changed = true;
-            s.constraints_changed = true;
-            s.steering
-                .iter_mut()
-                .for_each(|st| *st = Steering::default());
-        }
-        for s in self.streams.iter_mut().chain(&mut self.resting) {
+            s.forget_steering();
             s.steering.resize(n, Default::default());
         }
     }
