@@ -73,16 +73,7 @@ async fn bad_stream_input_is_refused_by_name_and_valid_input_goes_on() {
     // Every refusal left the session untouched: the valid input around them gives exactly the
     // offline result.
     assert_same_tracks(&tracks, &got.tracks);
-    let m = http(
-        &server.host(),
-        "GET",
-        &format!("/v1/sessions/{}/metrics", s.id),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
-    let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
+    let m = server.metrics(&s).await;
     assert_eq!(m.refused.values().sum::<u64>(), 15, "{:?}", m.refused);
     assert_eq!(m.refused["truncated"], 2);
     server.stop().await;

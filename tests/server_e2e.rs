@@ -73,16 +73,7 @@ async fn streamed_session_equals_offline_run_fast_and_paced() {
     assert_same_tracks(&tracks, &got.tracks);
     let n = sc.audio.as_ref().unwrap().frames();
     assert_eq!(audio_difference(&audio, &got.audio_by_label(n)), 0.0);
-    let m = http(
-        &server.host(),
-        "GET",
-        &format!("/v1/sessions/{}/metrics", s.id),
-        Some(&s.token),
-        None,
-    )
-    .await
-    .unwrap();
-    let m: avsep::protocol::rest::SessionMetrics = m.json().unwrap();
+    let m = server.metrics(&s).await;
     assert_eq!(m.steps as usize, tracks.len());
     assert!(
         m.step_latency_ms.count > 0 && m.step_latency_ms.p99 < 128.0,
@@ -224,5 +215,48 @@ async fn reconnecting_client_resumes_its_session() {
     assert_same_tracks(&tracks, &heard.tracks);
     let n = sc.audio.as_ref().unwrap().frames();
     assert_eq!(audio_difference(&audio, &heard.audio_by_label(n)), 0.0);
+    server.stop().await;
+}
+
+/// A face detector reporting 20 false boxes a frame (the tracker was told to expect one): the
+/// session's metrics show the camera's clutter rate as the tracker estimated it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_noisy_face_detector_shows_in_the_session_metrics() {
+    use rand::{Rng, SeedableRng};
+    let server = TestServer::start(ServerConfig::default()).await;
+    let mut sc = scene("uca8", 3.0, 2, 23);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+    let cam = sc.layout.cameras[0].clone();
+    for frame in &mut sc.detections {
+        for _ in 0..20 {
+            frame.boxes.push(avsep::scene::FaceBox {
+                x: rng.random_range(0.0..cam.width - 40.0),
+                y: rng.random_range(0.0..cam.height - 48.0),
+                w: rng.random_range(20.0..40.0),
+                h: rng.random_range(24.0..48.0),
+                score: None,
+                point: None,
+            });
+        }
+    }
+    let mut cfg = settings(7);
+    cfg.separation = false;
+    let s = server.create(&sc, cfg, None).await;
+    let feed = scene_feed(&sc, 1024, SampleEncoding::F32);
+    let got = stream_feed(
+        &server.ws_url(&s),
+        &s.token,
+        &feed,
+        &StreamOptions::default(),
+    )
+    .await
+    .unwrap();
+    assert!(got.errors.is_empty(), "{:?}", got.errors);
+    let m = server.metrics(&s).await;
+    let cam = m.clutter.iter().find(|c| c.sensor == cam.id);
+    let cam = cam.unwrap_or_else(|| panic!("no clutter rate for the camera: {:?}", m.clutter));
+    assert_eq!(cam.configured, 1.0);
+    // 3 s of steps take the running mean (time constant 2 s) most of the way from 1 to 20.
+    assert!(cam.estimated > 10.0 && cam.estimated < 25.0, "{cam:?}");
     server.stop().await;
 }

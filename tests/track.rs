@@ -5,6 +5,8 @@
 mod arrays;
 #[path = "track/bad_input.rs"]
 mod bad_input;
+#[path = "track/clutter.rs"]
+mod clutter;
 #[path = "track/crossing.rs"]
 mod crossing;
 #[path = "track/labels.rs"]

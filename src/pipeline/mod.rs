@@ -27,3 +27,4 @@ pub use sensor_queue::SensorQueue;
 pub use separation::{SeparationChunk, SeparationDriver, SeparationHandoff, SeparationWork};
 pub use session::{LIVE_SETTINGS, Pipeline, PipelineStats};
 pub use speaking::{SpeakingConfig, SpeakingFilter};
+pub use stages::SensorClutter;

@@ -20,7 +20,7 @@ use super::diarization::{Diarizer, to_rttm};
 use super::input::InputError;
 use super::oracle_mask::ideal_ratio_mask;
 use super::session::{Pipeline, PipelineStats};
-use super::stages::oracle_label;
+use super::stages::{SensorClutter, oracle_label};
 use super::{PipelineEvent, SizeBounds};
 
 /// Options of an offline run.
@@ -99,6 +99,8 @@ pub struct RunSummary {
     pub warnings: BTreeMap<String, u64>,
     /// Pipeline counters.
     pub stats: PipelineStats,
+    /// Each tracker sensor's clutter rate at the end of the run, configured and estimated.
+    pub clutter: Vec<SensorClutter>,
     /// Seed used.
     pub seed: u64,
     /// Settings used.
@@ -324,6 +326,7 @@ pub fn process_scene(
         speech_segments: written.speech_segments,
         warnings: written.warnings,
         stats: pipeline.stats(),
+        clutter: pipeline.clutter_rates(),
         seed,
         settings: cfg,
     };

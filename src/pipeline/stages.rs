@@ -3,6 +3,10 @@
 
 use std::collections::BTreeMap;
 
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
 use crate::dsp::{VoicePitch, Yin};
 use crate::geometry::{ArrayShape, Layout, Vec3, deg};
 use crate::label::Label;
@@ -147,6 +151,18 @@ pub fn measurement_line(layout: &Layout, obs: &ArrayObservation, t: f64) -> Audi
         points: obs.points.iter().map(|p| p.position.into()).collect(),
         activity: Some(obs.activity),
     }
+}
+
+/// A tracker sensor's clutter rate (expected false measurements per scan), configured and
+/// estimated online.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, ToSchema)]
+pub struct SensorClutter {
+    /// The sensor: a camera's id, or an array's id with `positions` or `directions`.
+    pub sensor: String,
+    /// The configured rate, the floor of the one the tracker uses.
+    pub configured: f64,
+    /// The online estimate.
+    pub estimated: f64,
 }
 
 /// Which tracker sensor each input feeds.

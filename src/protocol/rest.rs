@@ -13,7 +13,7 @@ use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Schema, Type};
 use utoipa::openapi::{Ref, RefOr};
 
 use crate::label::Label;
-use crate::pipeline::PipelineConfig;
+use crate::pipeline::{PipelineConfig, SensorClutter};
 use crate::scene::format::{ArrayFile, CameraFile, RegionFile, TrackFile};
 
 use super::ErrorBody;
@@ -352,6 +352,10 @@ pub struct SessionMetrics {
     pub separation_waits: u64,
     /// Connected stream clients.
     pub clients: usize,
+    /// Each tracker sensor's clutter rate (false measurements per scan), configured and as the
+    /// tracker estimates it now: an estimate far above the configured rate is a detector or
+    /// localiser reporting more false detections than it was tuned for.
+    pub clutter: Vec<SensorClutter>,
 }
 
 /// `{"error": {...}}`, the body of every error answer.

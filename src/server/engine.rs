@@ -3,7 +3,7 @@
 
 use crate::geometry::Layout;
 use crate::pipeline::{
-    ConfigError, EventSink, InputError, Pipeline, PipelineConfig, SeparationDriver,
+    ConfigError, EventSink, InputError, Pipeline, PipelineConfig, SensorClutter, SeparationDriver,
     SeparationHandoff,
 };
 use crate::scene::{AudioMeasurementFrame, DetectionFrame};
@@ -35,6 +35,10 @@ pub trait Engine: Send + 'static {
     fn set_layout(&mut self, layout: Layout) -> Result<(), ConfigError>;
     /// New settings, where they can change live.
     fn update_config(&mut self, cfg: PipelineConfig) -> Result<(), ConfigError>;
+    /// Each tracker sensor's clutter rate, configured and estimated (none by default).
+    fn clutter_rates(&self) -> Vec<SensorClutter> {
+        Vec::new()
+    }
     /// End of input: everything held is processed and flushed.
     fn finish(&mut self, sink: &mut EventSink<'_>);
     /// Hands the separation work to `handoff` from now on and returns what applies it
@@ -79,6 +83,9 @@ impl Engine for Pipeline {
         Pipeline::update_config(self, cfg)
     }
 
+    fn clutter_rates(&self) -> Vec<SensorClutter> {
+        Pipeline::clutter_rates(self)
+    }
     fn finish(&mut self, sink: &mut EventSink<'_>) {
         self.finish_to(sink)
     }

@@ -12,6 +12,7 @@ use prometheus::{
     Opts, Registry, TextEncoder,
 };
 
+use crate::pipeline::SensorClutter;
 use crate::protocol::rest::{FrameCounts, LatencySummary};
 
 /// Steps kept in a session's latency windows.
@@ -362,6 +363,7 @@ pub struct SessionCounters {
     pub live_tracks: AtomicUsize,
     /// Labels ever reported.
     pub labels_total: AtomicU64,
+    clutter: Mutex<Vec<SensorClutter>>,
 }
 
 impl SessionCounters {
@@ -386,7 +388,20 @@ impl SessionCounters {
             separation_waits: AtomicU64::new(0),
             live_tracks: AtomicUsize::new(0),
             labels_total: AtomicU64::new(0),
+            clutter: Mutex::new(Vec::new()),
         }
+    }
+
+    /// Records the tracker sensors' clutter rates after a message that ran steps.
+    pub fn set_clutter(&self, rates: Vec<SensorClutter>) {
+        if let Ok(mut c) = self.clutter.lock() {
+            *c = rates;
+        }
+    }
+
+    /// The clutter rates last recorded.
+    pub fn clutter(&self) -> Vec<SensorClutter> {
+        self.clutter.lock().map(|c| c.clone()).unwrap_or_default()
     }
 
     /// Counts a message accepted into the queue.

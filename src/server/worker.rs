@@ -60,6 +60,9 @@ pub(super) fn run<E: Engine>(
     let mut out = Publisher::new(&session, started);
     let finished = catch_unwind(AssertUnwindSafe(|| engine.finish(&mut |e| out.emit(e))));
     let busy = started.elapsed();
+    if finished.is_ok() {
+        session.counters.set_clutter(engine.clutter_rates());
+    }
     wind_up(engine, separation);
     match finished {
         Ok(()) if session.state() != SessionState::Failed => {
@@ -214,6 +217,9 @@ fn handle<E: Engine>(engine: &mut E, s: &Session, q: Queued) {
             let busy = started.elapsed();
             s.counters.processed(busy, samples, s.sample_rate());
             out.count_steps(busy);
+            if out.stepped() {
+                s.counters.set_clutter(engine.clutter_rates());
+            }
             if let Err(e) = result {
                 s.counters.refused(e.code);
                 s.broadcast(Output::Error {
@@ -306,6 +312,11 @@ impl<'a> Publisher<'a> {
             PipelineEvent::Pitch { .. } => return,
         };
         self.session.broadcast(out);
+    }
+
+    /// Whether the message ran at least one step.
+    fn stepped(&self) -> bool {
+        !self.latencies.is_empty()
     }
 
     /// Records the message's steps, each with its latency and an equal share of the message's

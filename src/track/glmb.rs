@@ -6,6 +6,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::birth::{Birth, BirthContext, BirthScan, BirthTerm, births_from_measurements};
+use super::clutter;
 use super::config::{ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::Transition;
@@ -15,7 +16,7 @@ use super::modes::Modes;
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
 use super::sensor::{Sensor, SensorModel};
-use super::{StepInput, TrackEstimate, Tracker, TrackerStats, covariance6};
+use super::{ClutterRateReport, StepInput, TrackEstimate, Tracker, TrackerStats, covariance6};
 use crate::geometry::{Aabb, Vec3};
 use crate::label::Label;
 
@@ -282,6 +283,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
         };
         self.posterior = self.work.run(&self.posterior, &model, &mut self.rng);
         let (entry_w, r_u, labels) = self.marginals(&scans);
+        clutter::observe_step(&self.cfg.clutter, &mut self.sensors, &scans, &r_u, dt);
         let audio = scans.iter().any(|s| self.sensors[s.sensor].audio);
         let out = self.report(&labels, audio);
         if self.cfg.birth.from_measurements {
@@ -299,7 +301,9 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
     }
 
     fn set_sensors(&mut self, sensors: Vec<SensorModel>) -> Result<(), ConfigError> {
-        (self.sensors, self.modes) = compile_sensors(&sensors, &self.cfg)?;
+        let (mut compiled, modes) = compile_sensors(&sensors, &self.cfg)?;
+        clutter::carry_over(&self.sensors, &mut compiled);
+        (self.sensors, self.modes) = (compiled, modes);
         // Pending births refer to measurements of the old calibration.
         self.pending.clear();
         Ok(())
@@ -307,6 +311,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
 
     fn reset(&mut self) {
         self.posterior = Posterior::empty();
+        clutter::reset(&mut self.sensors);
         self.pending.clear();
         self.clock = StepClock::default();
         self.reporter.reset();
@@ -315,6 +320,10 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
 
     fn stats(&self) -> TrackerStats {
         self.stats
+    }
+
+    fn clutter_rates(&self) -> Vec<ClutterRateReport> {
+        self.sensors.iter().map(|s| s.clutter.report()).collect()
     }
 }
 
@@ -419,5 +428,66 @@ mod tests {
         // A measurement far from the track still seeds one.
         step(&mut tracker, 2, -1.5);
         assert_eq!(tracker.pending.len(), 1);
+    }
+
+    /// The clutter estimate survives a recalibration (the same sensors, moved; a refused one
+    /// changes nothing) and a reset returns it to the configured rate.
+    #[test]
+    fn the_clutter_estimate_survives_recalibration_and_not_reset() {
+        let cfg = TrackerConfig::default();
+        let mut tracker = direction_tracker(&cfg, 0.9, 0.5);
+        // 12 directions a step spread over the circle, never twice at the same bearing.
+        for k in 0..60u64 {
+            let measurements = (0..12)
+                .map(|j| Measurement::Direction {
+                    azimuth: ((k * 12 + j) as f64 * 2.39996).rem_euclid(std::f64::consts::TAU)
+                        - std::f64::consts::PI,
+                    elevation: None,
+                })
+                .collect();
+            tracker.step(&StepInput {
+                k,
+                t: k as f64 * 0.128,
+                scans: vec![Scan {
+                    sensor: 0,
+                    measurements,
+                    activity: Some(0.9),
+                    sounding: Vec::new(),
+                }],
+            });
+        }
+        let learnt = tracker.clutter_rates()[0];
+        assert_eq!(learnt.configured, 0.5);
+        assert!(learnt.estimated > 9.0, "{learnt:?}");
+        let sensors = vec![SensorModel::AudioDirection {
+            origin: Vec3::new(3.1, 2.5, 0.8),
+            noise_std_rad: 5f64.to_radians(),
+            uses_elevation: false,
+            cone_axis: None,
+            p_detect: 0.9,
+            min_p_detect: 0.02,
+            clutter_rate: 1.0,
+            filter: FilterKind::Ekf,
+        }];
+        let mut bad = sensors.clone();
+        if let SensorModel::AudioDirection { p_detect, .. } = &mut bad[0] {
+            *p_detect = 1.5;
+        }
+        assert!(tracker.set_sensors(bad).is_err());
+        assert_eq!(
+            tracker.clutter_rates(),
+            vec![learnt],
+            "a refused change keeps the sensors"
+        );
+        tracker.set_sensors(sensors).unwrap();
+        let moved = tracker.clutter_rates()[0];
+        assert_eq!(moved.configured, 1.0);
+        assert_eq!(moved.estimated, learnt.estimated);
+        assert_eq!(
+            tracker.sensors[0].log_clutter,
+            tracker.sensors[0].clutter.log_intensity()
+        );
+        tracker.reset();
+        assert_eq!(tracker.clutter_rates()[0].estimated, 1.0);
     }
 }

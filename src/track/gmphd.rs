@@ -14,6 +14,7 @@ use nalgebra::SVector;
 use crate::eval::assignment::{CostMatrix, assign};
 
 use super::birth::{BirthContext, BirthScan, BirthTerm, births_from_measurements};
+use super::clutter;
 use super::config::{ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::{Transition, prepare};
@@ -24,7 +25,7 @@ use super::modes::Modes;
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
 use super::sensor::{Sensor, SensorModel};
-use super::{StepInput, TrackEstimate, Tracker, TrackerStats, covariance6};
+use super::{ClutterRateReport, StepInput, TrackEstimate, Tracker, TrackerStats, covariance6};
 use crate::geometry::Aabb;
 use crate::label::Label;
 
@@ -412,6 +413,7 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
         if scans.is_empty() {
             self.prune_and_merge();
         }
+        clutter::observe_step(&self.cfg.clutter, &mut self.sensors, &scans, &r_u, dt);
         if let Some(region) = clamp_region(&self.cfg, self.region.as_ref()) {
             for c in &mut self.comps {
                 clamp_position(&mut c.g.mean, &region);
@@ -451,13 +453,16 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
     }
 
     fn set_sensors(&mut self, sensors: Vec<SensorModel>) -> Result<(), ConfigError> {
-        (self.sensors, self.modes) = compile_sensors(&sensors, &self.cfg)?;
+        let (mut compiled, modes) = compile_sensors(&sensors, &self.cfg)?;
+        clutter::carry_over(&self.sensors, &mut compiled);
+        (self.sensors, self.modes) = (compiled, modes);
         self.pending.clear();
         Ok(())
     }
 
     fn reset(&mut self) {
         self.comps.clear();
+        clutter::reset(&mut self.sensors);
         self.pending.clear();
         self.previous.clear();
         self.coasting.clear();
@@ -467,5 +472,9 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
 
     fn stats(&self) -> TrackerStats {
         self.stats
+    }
+
+    fn clutter_rates(&self) -> Vec<ClutterRateReport> {
+        self.sensors.iter().map(|s| s.clutter.report()).collect()
     }
 }

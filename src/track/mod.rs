@@ -38,6 +38,9 @@
 //!   existence and later take its identity).
 //! - `modes`: the per-track detectability modes, two-state Markov chains: the voice (talking or
 //!   silent) behind the audio P_D, and per camera the face (towards it or turned away).
+//! - `clutter`: each sensor's clutter rate estimated online (the unexplained measurements'
+//!   running mean, the configured rate its floor), so a detector noisier than configured does
+//!   not breed tracks.
 //! - `estimator`: reporting hysteresis and `speaking` smoothing; `gmphd`: the GM-PHD (its label matching uses
 //!   `eval::assignment`, the project's one assignment solver).
 //!
@@ -78,6 +81,7 @@
 //! - Measurement-driven births start with r_B = 0.01 (the paper's fixed births: 0.005).
 
 mod birth;
+mod clutter;
 mod config;
 mod estimator;
 mod filter;
@@ -99,10 +103,11 @@ use nalgebra::Matrix6;
 pub(crate) use modes::ModeModel;
 
 pub use birth::BirthTerm;
+pub use clutter::ClutterRateReport;
 pub use config::{
-    AudioDirectionConfig, AudioPositionConfig, BirthConfig, CameraConfig, ConfigError,
-    EstimatorConfig, FaceConfig, FilterKind, FixedBirth, GlmbConfig, GmphdConfig, MotionConfig,
-    MotionKind, TrackerConfig, TrackerKind, UkfConfig, VoiceConfig,
+    AudioDirectionConfig, AudioPositionConfig, BirthConfig, CameraConfig, ClutterConfig,
+    ConfigError, EstimatorConfig, FaceConfig, FilterKind, FixedBirth, GlmbConfig, GmphdConfig,
+    MotionConfig, MotionKind, TrackerConfig, TrackerKind, UkfConfig, VoiceConfig,
 };
 pub use gaussian::Gaussian;
 pub use glmb::GlmbTracker;
@@ -186,6 +191,8 @@ pub trait Tracker: Send {
     fn reset(&mut self);
     /// Counters of input that could not be used.
     fn stats(&self) -> TrackerStats;
+    /// Each sensor's clutter rate as configured and as estimated, in sensor order.
+    fn clutter_rates(&self) -> Vec<ClutterRateReport>;
 }
 
 /// Builds the configured tracker over the 3-D state `[position; velocity]`.

@@ -95,6 +95,16 @@ impl TestServer {
         r.json().unwrap()
     }
 
+    /// The session's metrics (`GET /v1/sessions/{id}/metrics`).
+    pub async fn metrics(&self, s: &SessionCreated) -> avsep::protocol::rest::SessionMetrics {
+        let path = format!("/v1/sessions/{}/metrics", s.id);
+        let r = http(&self.host(), "GET", &path, Some(&s.token), None)
+            .await
+            .unwrap();
+        assert_eq!(r.status, 200, "{}", r.text());
+        r.json().unwrap()
+    }
+
     /// Stops the server (draining its sessions) and waits for it.
     pub async fn stop(mut self) {
         if let Some(tx) = self.stop.take() {

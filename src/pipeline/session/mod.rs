@@ -26,7 +26,7 @@ use super::input::{self, InputError};
 use super::sensor_queue::SensorQueue;
 use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
 use super::speaking::SpeakingFilter;
-use super::stages::{OraclePitch, SensorRoutes, Timeline};
+use super::stages::{OraclePitch, SensorClutter, SensorRoutes, Timeline};
 use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
 /// Counters of a pipeline's life, for summaries and metrics.
@@ -496,6 +496,23 @@ impl Pipeline {
         }
         self.cfg = cfg;
         Ok(())
+    }
+
+    /// The tracker sensors' clutter rates, configured and estimated (none with oracle tracks).
+    pub fn clutter_rates(&self) -> Vec<SensorClutter> {
+        let TrackSource::Tracker { tracker, routes } = &self.source else {
+            return Vec::new();
+        };
+        routes
+            .keys()
+            .iter()
+            .zip(tracker.clutter_rates())
+            .map(|(key, rate)| SensorClutter {
+                sensor: key.name(&self.layout),
+                configured: rate.configured,
+                estimated: rate.estimated,
+            })
+            .collect()
     }
 
     /// Keys of the tracker's sensors, in sensor-index order (for diagnostics).

@@ -127,6 +127,7 @@ impl Session {
             separation_queue_capacity: c.separation_capacity.load(Ordering::Relaxed),
             separation_waits: c.separation_waits(),
             clients: self.clients(),
+            clutter: c.clutter(),
         }
     }
 }

@@ -154,6 +154,7 @@ impl TrackerConfig {
             "must not exceed camera.p_detect",
         )?;
         probability(f.initial_towards, "face.initial_towards")?;
+        positive(self.clutter.time_constant_s, "clutter.time_constant_s")?;
         let e = &self.estimator;
         probability(e.hysteresis_existence, "estimator.hysteresis_existence")?;
         ConfigError::check(

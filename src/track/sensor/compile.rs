@@ -7,6 +7,7 @@ use nalgebra::{DMatrix, Matrix3, SMatrix};
 
 use super::{CLUTTER_SIZE_RANGE_PX, Observation, Sensor, SensorModel};
 use crate::geometry::{Camera, Vec3};
+use crate::track::clutter::ClutterRate;
 use crate::track::config::{ConfigError, FilterKind, TrackerConfig};
 use crate::track::gaussian::chi_square_quantile;
 
@@ -97,6 +98,7 @@ impl<const N: usize> Sensor<N> {
             cfg.face.away_p_detect.min(det.p_detect)
         };
         let dim = observed.dim;
+        let clutter = ClutterRate::new(det.clutter_rate, observed.log_density);
         Ok(Self {
             obs: observed.obs,
             dim,
@@ -105,7 +107,8 @@ impl<const N: usize> Sensor<N> {
             min_p_detect: det.min_p_detect,
             off_p_detect,
             mode: None,
-            log_clutter: det.clutter_rate.ln() + observed.log_density,
+            log_clutter: clutter.log_intensity(),
+            clutter,
             filter: det.filter,
             audio: det.audio,
             gate: chi_square_quantile(cfg.gate_probability, dim),

@@ -18,6 +18,18 @@ pub enum SensorKey {
     Camera(usize),
 }
 
+impl SensorKey {
+    /// The sensor's name in `layout`: the camera's id, or the array's id with what it measures.
+    pub fn name(&self, layout: &Layout) -> String {
+        let array = |i: usize| layout.arrays.get(i).map_or("?", |a| a.id.as_str());
+        match *self {
+            Self::ArrayPositions(i) => format!("{} positions", array(i)),
+            Self::ArrayDirections(i) => format!("{} directions", array(i)),
+            Self::Camera(j) => layout.cameras.get(j).map_or("?", |c| c.id.as_str()).into(),
+        }
+    }
+}
+
 /// A sensor's measurement model, built by the pipeline from the layout and the configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SensorModel {

@@ -15,6 +15,7 @@ mod layout;
 
 pub use layout::{SensorKey, SensorModel, sensors_from_layout};
 
+use super::clutter::ClutterRate;
 use super::config::FilterKind;
 use super::filter::Prepared;
 use super::gaussian::normal_cdf;
@@ -93,8 +94,10 @@ pub(crate) struct Sensor<const N: usize> {
     pub off_p_detect: f64,
     /// The track's detectability mode slot this sensor follows (see `modes`); None: plain P_D.
     pub mode: Option<usize>,
-    /// log of the clutter intensity kappa(z) = rate * uniform density.
+    /// log of the clutter intensity kappa(z) = rate * uniform density, from `clutter`.
     pub log_clutter: f64,
+    /// The clutter rate: configured floor and online estimate.
+    pub clutter: ClutterRate,
     pub filter: FilterKind,
     /// An audio sensor: its detection follows the voice activity and feeds `speaking`.
     pub audio: bool,
