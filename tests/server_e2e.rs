@@ -256,6 +256,7 @@ async fn a_noisy_face_detector_shows_in_the_session_metrics() {
     let cam = m.clutter.iter().find(|c| c.sensor == cam.id);
     let cam = cam.unwrap_or_else(|| panic!("no clutter rate for the camera: {:?}", m.clutter));
     assert_eq!(cam.configured, 1.0);
+    assert!(cam.scans > 0, "{cam:?}");
     // 3 s of steps take the running mean (time constant 2 s) most of the way from 1 to 20.
     assert!(cam.estimated > 10.0 && cam.estimated < 25.0, "{cam:?}");
     server.stop().await;

@@ -4,6 +4,16 @@ import { api } from './api.js';
 
 const ms = (v) => `${v.toFixed(1)} ms`;
 
+// Each tracker sensor's false measurements per scan as the tracker estimates them, with the
+// configured rate (the floor) in brackets: an estimate far above it is a noisy detector.
+// Sensors that never reported (an array's positions when its directions are used) are left out.
+const clutter = (list) => {
+  const seen = list.filter((c) => c.scans > 0);
+  return seen.length
+    ? seen.map((c) => `${c.sensor} ${c.estimated.toFixed(1)} (${c.configured})`).join(', ')
+    : 'none';
+};
+
 function rows(m) {
   const refused = Object.entries(m.refused);
   const refusedTotal = refused.reduce((s, [, n]) => s + n, 0);
@@ -18,6 +28,7 @@ function rows(m) {
     ['output dropped', m.output_dropped],
     ['queue', `${m.queue_depth} / ${m.queue_capacity}`],
     ['live tracks / labels', `${m.live_tracks} / ${m.labels_total}`],
+    ['false detections per scan (configured)', clutter(m.clutter ?? [])],
     ['clients', m.clients],
   ];
 }

@@ -163,6 +163,9 @@ pub struct SensorClutter {
     pub configured: f64,
     /// The online estimate.
     pub estimated: f64,
+    /// Scans the estimate has taken in (0: the sensor has not reported, e.g. an array whose
+    /// directions the tracker takes rather than its positions).
+    pub scans: u64,
 }
 
 /// Which tracker sensor each input feeds.

@@ -25,6 +25,8 @@ pub struct ClutterRateReport {
     pub configured: f64,
     /// The running estimate (the configured rate until the sensor has scanned).
     pub estimated: f64,
+    /// Scans the estimate has taken in.
+    pub scans: u64,
 }
 
 /// One sensor's clutter rate: the configured floor and the running estimate.
@@ -36,6 +38,8 @@ pub(crate) struct ClutterRate {
     pub estimate: f64,
     /// log of the uniform density u(z) over the measurement space.
     pub log_density: f64,
+    /// Scans taken in.
+    pub scans: u64,
 }
 
 impl ClutterRate {
@@ -45,6 +49,7 @@ impl ClutterRate {
             floor,
             estimate: floor,
             log_density,
+            scans: 0,
         }
     }
 
@@ -58,6 +63,7 @@ impl ClutterRate {
         ClutterRateReport {
             configured: self.floor,
             estimated: self.estimate,
+            scans: self.scans,
         }
     }
 
@@ -74,6 +80,7 @@ impl ClutterRate {
         }
         let alpha = 1.0 - (-dt / time_constant_s).exp();
         self.estimate += alpha * (count - self.estimate);
+        self.scans += 1;
     }
 }
 
@@ -113,6 +120,7 @@ pub(crate) fn carry_over<const N: usize>(old: &[Sensor<N>], new: &mut [Sensor<N>
     }
     for (o, n) in old.iter().zip(new.iter_mut()) {
         n.clutter.estimate = o.clutter.estimate;
+        n.clutter.scans = o.clutter.scans;
         n.log_clutter = n.clutter.log_intensity();
     }
 }
@@ -121,6 +129,7 @@ pub(crate) fn carry_over<const N: usize>(old: &[Sensor<N>], new: &mut [Sensor<N>
 pub(crate) fn reset<const N: usize>(sensors: &mut [Sensor<N>]) {
     for s in sensors {
         s.clutter.estimate = s.clutter.floor;
+        s.clutter.scans = 0;
         s.log_clutter = s.clutter.log_intensity();
     }
 }
@@ -152,6 +161,6 @@ mod tests {
         c.observe(f64::NAN, 0.128, 2.0);
         c.observe(10.0, 0.0, 2.0);
         c.observe(10.0, f64::NAN, 2.0);
-        assert_eq!(c.estimate, 2.0);
+        assert_eq!((c.estimate, c.scans), (2.0, 0));
     }
 }

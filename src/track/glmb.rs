@@ -482,12 +482,16 @@ mod tests {
         tracker.set_sensors(sensors).unwrap();
         let moved = tracker.clutter_rates()[0];
         assert_eq!(moved.configured, 1.0);
-        assert_eq!(moved.estimated, learnt.estimated);
+        assert_eq!(
+            (moved.estimated, moved.scans),
+            (learnt.estimated, learnt.scans)
+        );
         assert_eq!(
             tracker.sensors[0].log_clutter,
             tracker.sensors[0].clutter.log_intensity()
         );
         tracker.reset();
-        assert_eq!(tracker.clutter_rates()[0].estimated, 1.0);
+        let reset = tracker.clutter_rates()[0];
+        assert_eq!((reset.estimated, reset.scans), (1.0, 0));
     }
 }

@@ -137,6 +137,9 @@ test('the demo room is listed, its tracks appear and move, and its voices arrive
   await page.waitForSelector('dd[data-metric="real-time factor"]', { timeout: 5000 });
   const rtf = Number(await page.textContent('dd[data-metric="real-time factor"]'));
   assert.ok(rtf > 0 && rtf < 1, `the demo keeps up (real-time factor ${rtf})`);
+  // The demo room's camera is among the sensors whose clutter rate the tracker estimates.
+  const clutter = await page.textContent('dd[data-metric="false detections per scan (configured)"]');
+  assert.match(clutter, /\(1\)/, `the camera's rate is shown: ${clutter}`);
 
   // Screenshot of the live view; it is not blank (pixel variance measured in the page).
   const shot = await page.screenshot({ path: join(outDir, 'dashboard-live.png'), fullPage: true });

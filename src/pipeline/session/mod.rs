@@ -511,6 +511,7 @@ impl Pipeline {
                 sensor: key.name(&self.layout),
                 configured: rate.configured,
                 estimated: rate.estimated,
+                scans: rate.scans,
             })
             .collect()
     }
