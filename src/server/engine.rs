@@ -86,6 +86,7 @@ impl Engine for Pipeline {
     fn clutter_rates(&self) -> Vec<SensorClutter> {
         Pipeline::clutter_rates(self)
     }
+
     fn finish(&mut self, sink: &mut EventSink<'_>) {
         self.finish_to(sink)
     }
