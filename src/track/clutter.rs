@@ -29,28 +29,38 @@ pub struct ClutterRateReport {
     pub scans: u64,
 }
 
-/// One sensor's clutter rate: the configured floor and the running estimate.
+/// One sensor's clutter rate: the configured floor and the running estimate, with the log
+/// intensity the filters read in their inner loops, kept current by every change.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct ClutterRate {
     /// The configured rate (expected false measurements per scan), the floor of the estimate.
-    pub floor: f64,
+    floor: f64,
     /// Running mean of the expected clutter count per scan.
-    pub estimate: f64,
+    estimate: f64,
     /// log of the uniform density u(z) over the measurement space.
-    pub log_density: f64,
+    log_density: f64,
     /// Scans taken in.
-    pub scans: u64,
+    scans: u64,
+    /// log kappa(z) = ln(max(estimate, floor)) + log_density.
+    log_intensity: f64,
 }
 
 impl ClutterRate {
     /// A rate that starts at the configured value.
     pub fn new(floor: f64, log_density: f64) -> Self {
-        Self {
+        let mut c = Self {
             floor,
             estimate: floor,
             log_density,
             scans: 0,
-        }
+            log_intensity: 0.0,
+        };
+        c.refresh();
+        c
+    }
+
+    fn refresh(&mut self) {
+        self.log_intensity = self.rate().ln() + self.log_density;
     }
 
     /// The rate the model uses: the estimate, never below the configured floor.
@@ -68,8 +78,23 @@ impl ClutterRate {
     }
 
     /// log of the clutter intensity kappa(z).
+    #[inline]
     pub fn log_intensity(&self) -> f64 {
-        self.rate().ln() + self.log_density
+        self.log_intensity
+    }
+
+    /// Takes over another rate's estimate (same sensor, new configuration); keeps this floor.
+    fn continue_from(&mut self, old: &ClutterRate) {
+        self.estimate = old.estimate;
+        self.scans = old.scans;
+        self.refresh();
+    }
+
+    /// Back to the configured rate, as before any scan.
+    fn forget(&mut self) {
+        self.estimate = self.floor;
+        self.scans = 0;
+        self.refresh();
     }
 
     /// Folds one scan's expected clutter count into the running mean with weight
@@ -81,6 +106,7 @@ impl ClutterRate {
         let alpha = 1.0 - (-dt / time_constant_s).exp();
         self.estimate += alpha * (count - self.estimate);
         self.scans += 1;
+        self.refresh();
     }
 }
 
@@ -107,7 +133,6 @@ pub(crate) fn observe_step<const N: usize>(
             sensor
                 .clutter
                 .observe(expected_clutter(r), dt, cfg.time_constant_s);
-            sensor.log_clutter = sensor.clutter.log_intensity();
         }
     }
 }
@@ -119,18 +144,14 @@ pub(crate) fn carry_over<const N: usize>(old: &[Sensor<N>], new: &mut [Sensor<N>
         return;
     }
     for (o, n) in old.iter().zip(new.iter_mut()) {
-        n.clutter.estimate = o.clutter.estimate;
-        n.clutter.scans = o.clutter.scans;
-        n.log_clutter = n.clutter.log_intensity();
+        n.clutter.continue_from(&o.clutter);
     }
 }
 
 /// Forgets the estimates (a tracker reset starts over from the configured rates).
 pub(crate) fn reset<const N: usize>(sensors: &mut [Sensor<N>]) {
     for s in sensors {
-        s.clutter.estimate = s.clutter.floor;
-        s.clutter.scans = 0;
-        s.log_clutter = s.clutter.log_intensity();
+        s.clutter.forget();
     }
 }
 

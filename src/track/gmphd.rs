@@ -149,7 +149,7 @@ impl<const N: usize> GmphdTracker<N> {
         let mut r_u = vec![0.0; scan.z.len()];
         for (j, (dets, sc)) in detections.into_iter().zip(scores).enumerate() {
             let denom = super::gaussian::log_add(
-                sensor.log_clutter,
+                sensor.clutter.log_intensity(),
                 super::gaussian::log_sum_exp(sc.iter().copied()),
             );
             for (mut d, s) in dets.into_iter().zip(sc) {

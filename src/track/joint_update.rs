@@ -266,7 +266,7 @@ impl<const N: usize> JointUpdate<N> {
                 pd = on * pd + (1.0 - on) * off;
             }
             let log_miss = (-pd).ln_1p();
-            let log_hit = pd.ln() - sensor.log_clutter;
+            let log_hit = pd.ln() - sensor.clutter.log_intensity();
             self.log_pd[c * sc + s] = (log_miss, log_hit);
             self.row.clear();
             self.row.push((0, log_miss));
@@ -368,7 +368,7 @@ impl<const N: usize> JointUpdate<N> {
                 modes[slot] = after;
                 term += f.ln();
                 if j != 0 {
-                    term -= sensor.log_clutter;
+                    term -= sensor.clutter.log_intensity();
                 }
             } else {
                 let (log_miss, log_hit) = self.log_pd[c * sc + s];

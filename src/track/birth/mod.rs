@@ -210,8 +210,8 @@ fn condition<const N: usize>(
         for (z, a) in scan.z.iter().zip(scan.assoc) {
             let d2 = p.mahalanobis(&p.innovation(sensor, z));
             if d2 <= sensor.gate {
-                seen +=
-                    (1.0 - a.clamp(0.0, 1.0)) * (p.log_likelihood(d2) - sensor.log_clutter).exp();
+                seen += (1.0 - a.clamp(0.0, 1.0))
+                    * (p.log_likelihood(d2) - sensor.clutter.log_intensity()).exp();
             }
         }
         let ratio = |pd: f64| (1.0 - pd) + pd * seen;

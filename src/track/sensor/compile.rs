@@ -107,7 +107,6 @@ impl<const N: usize> Sensor<N> {
             min_p_detect: det.min_p_detect,
             off_p_detect,
             mode: None,
-            log_clutter: clutter.log_intensity(),
             clutter,
             filter: det.filter,
             audio: det.audio,

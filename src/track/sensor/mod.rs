@@ -94,9 +94,7 @@ pub(crate) struct Sensor<const N: usize> {
     pub off_p_detect: f64,
     /// The track's detectability mode slot this sensor follows (see `modes`); None: plain P_D.
     pub mode: Option<usize>,
-    /// log of the clutter intensity kappa(z) = rate * uniform density, from `clutter`.
-    pub log_clutter: f64,
-    /// The clutter rate: configured floor and online estimate.
+    /// The clutter rate (configured floor and online estimate) and its log intensity.
     pub clutter: ClutterRate,
     pub filter: FilterKind,
     /// An audio sensor: its detection follows the voice activity and feeds `speaking`.
