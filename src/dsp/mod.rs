@@ -14,3 +14,10 @@ pub use yin::{VoicePitch, Yin};
 
 /// Complex sample type used for spectra.
 pub type Complex = num_complex::Complex<f64>;
+
+/// The inner product a^H b (`a` conjugated) over the shorter of the two slices: a beamformer's
+/// output for a snapshot, or its response to a steering vector.
+#[inline]
+pub fn inner(a: &[Complex], b: &[Complex]) -> Complex {
+    a.iter().zip(b).map(|(x, y)| x.conj() * y).sum()
+}

@@ -16,7 +16,7 @@
 
 use std::f64::consts::PI;
 
-use crate::dsp::Complex;
+use crate::dsp::{Complex, inner};
 
 use super::gcc::GccBank;
 
@@ -201,7 +201,7 @@ impl SubbandMask {
         self.steering(delays);
         for (b, o) in out.iter_mut().enumerate() {
             let v = &self.principal[b * m..(b + 1) * m];
-            let proj: Complex = self.steer.iter().zip(v).map(|(a, x)| a.conj() * x).sum();
+            let proj: Complex = inner(&self.steer, v);
             *o = if self.diag[b] > 0.0 {
                 (proj.norm_sqr() / m as f64).clamp(0.0, 1.0)
             } else {

@@ -173,6 +173,7 @@ fn combine(v: &[Complex], scale: f64, q: &[Complex], out: &mut [Complex]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dsp::inner;
 
     fn vecs() -> Vec<Vec<Complex>> {
         vec![
@@ -230,7 +231,7 @@ mod tests {
                     .map(|(k, v)| v + Complex::new(k as f64, 1.0))
                     .collect();
                 b.apply(&y2, &mut u);
-                let ip: Complex = cols[i].iter().zip(&y2).map(|(x, y)| x.conj() * y).sum();
+                let ip: Complex = inner(&cols[i], &y2);
                 assert!((ip - u[i]).norm() < 1e-12);
             }
         }

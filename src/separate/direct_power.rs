@@ -24,7 +24,7 @@
 //! against 0.79; any talker against a silent label 0.96 against 0.93 and 0.97 against 0.95.
 
 use super::nnls::Nnls;
-use crate::dsp::Complex;
+use crate::dsp::{Complex, inner};
 use crate::geometry::Vec3;
 
 /// Band of the fit (Hz). Below 1 kHz a small array's steering vectors of nearby labels and the
@@ -177,7 +177,7 @@ impl DirectPowerFit {
             for i in 0..n {
                 let ai = &steering[i * m..(i + 1) * m];
                 for j in i..n {
-                    let g = dot(ai, &steering[j * m..(j + 1) * m]).norm_sqr();
+                    let g = inner(ai, &steering[j * m..(j + 1) * m]).norm_sqr();
                     gram[i * nn + j] = g;
                     gram[j * nn + i] = g;
                 }
@@ -193,7 +193,7 @@ impl DirectPowerFit {
         let rhs = &mut self.rhs[b * nn..(b + 1) * nn];
         for (j, r) in rhs.iter_mut().enumerate() {
             let v = if j < n {
-                dot(&steering[j * m..(j + 1) * m], y).norm_sqr()
+                inner(&steering[j * m..(j + 1) * m], y).norm_sqr()
             } else {
                 quadratic(gamma, y, m)
             };
@@ -256,11 +256,6 @@ impl BandCount {
         let d = *self.dominated.get(j)?;
         (self.counted > 0).then(|| f64::from(d) / f64::from(self.counted))
     }
-}
-
-/// a^H b.
-fn dot(a: &[Complex], b: &[Complex]) -> Complex {
-    a.iter().zip(b).map(|(x, y)| x.conj() * y).sum()
 }
 
 /// x^H G x for the real symmetric `m x m` matrix `g` (each pair once).

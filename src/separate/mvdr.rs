@@ -74,6 +74,7 @@ pub fn weights(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dsp::inner;
 
     #[test]
     fn distortionless_and_rejects_a_learnt_interferer() {
@@ -94,7 +95,7 @@ mod tests {
         let mut work = vec![Complex::new(0.0, 0.0); m * m];
         let mut w = vec![Complex::new(0.0, 0.0); m];
         weights(&r, m, &a, 1e-3, &mut work, &mut w);
-        let resp = |v: &[Complex]| -> Complex { w.iter().zip(v).map(|(w, v)| w.conj() * v).sum() };
+        let resp = |v: &[Complex]| -> Complex { inner(&w, v) };
         assert!((resp(&a) - Complex::new(1.0, 0.0)).norm() < 1e-9);
         assert!(resp(&b).norm() < 0.03, "{}", resp(&b).norm());
     }

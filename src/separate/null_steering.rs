@@ -9,7 +9,7 @@
 //! result degrades gracefully to delay-and-sum.
 
 use super::cholesky;
-use crate::dsp::Complex;
+use crate::dsp::{Complex, inner};
 
 /// Solver of the loaded null-steering problem for one constraint matrix, reused across bins.
 ///
@@ -59,7 +59,7 @@ impl NullSteering {
 
     /// W_0^H y with the weights kept by [`NullSteering::prepare_first`].
     pub fn first_output(&self, y: &[Complex]) -> Complex {
-        self.first.iter().zip(y).map(|(w, y)| w.conj() * y).sum()
+        inner(&self.first, y)
     }
 
     /// The weights kept by [`NullSteering::prepare_first`].
@@ -232,10 +232,6 @@ mod tests {
             .collect()
     }
 
-    fn response(w: &[Complex], a: &[Complex]) -> Complex {
-        w.iter().zip(a).map(|(w, a)| w.conj() * a).sum()
-    }
-
     #[test]
     fn unit_response_toward_label_and_deep_nulls_elsewhere() {
         let mics = uca(8, 0.05);
@@ -256,7 +252,7 @@ mod tests {
             for i in 0..3 {
                 ns.weights(&d, 8, i, &mut w);
                 for j in 0..3 {
-                    let r = response(&w, &d[j * 8..(j + 1) * 8]);
+                    let r = inner(&w, &d[j * 8..(j + 1) * 8]);
                     if i == j {
                         assert!((r - Complex::new(1.0, 0.0)).norm() < 1e-9, "{f} Hz: {r}");
                     } else {
@@ -265,7 +261,7 @@ mod tests {
                         // look alike to the array (low frequency, or spatial aliasing at 7 kHz
                         // for this 10 cm array) and the loading trades null depth for noise gain.
                         let rho =
-                            response(&d[i * 8..(i + 1) * 8], &d[j * 8..(j + 1) * 8]).norm() / 8.0;
+                            inner(&d[i * 8..(i + 1) * 8], &d[j * 8..(j + 1) * 8]).norm() / 8.0;
                         let need = if rho < 0.85 { -30.0 } else { -20.0 };
                         assert!(
                             db < need,
@@ -280,14 +276,14 @@ mod tests {
                 let mut cross = [0.0; 3];
                 ns.cross_powers(i, &mut cross);
                 for j in 0..3 {
-                    let r = response(&w, &d[j * 8..(j + 1) * 8]).norm_sqr();
+                    let r = inner(&w, &d[j * 8..(j + 1) * 8]).norm_sqr();
                     assert!((cross[j] - r).abs() < 1e-9 * r.max(1.0), "{f} Hz");
                 }
                 // outputs() agrees with the explicit weights.
                 let y: Vec<Complex> = (0..8).map(|k| Complex::new(k as f64, -1.0)).collect();
                 let mut out = vec![Complex::new(0.0, 0.0); 3];
                 ns.outputs(&d, 8, &y, &mut out);
-                assert!((out[i] - response(&w, &y)).norm() < 1e-9);
+                assert!((out[i] - inner(&w, &y)).norm() < 1e-9);
                 // So do the kept first-column weights, with the label's column first.
                 let mut own = d[i * 8..(i + 1) * 8].to_vec();
                 own.extend(
@@ -313,7 +309,7 @@ mod tests {
         ns.prepare(&d, 2, 4, 1e-2);
         let mut w = vec![Complex::new(0.0, 0.0); 4];
         ns.weights(&d, 4, 0, &mut w);
-        let r = response(&w, &d[..4]);
+        let r = inner(&w, &d[..4]);
         assert!((r - Complex::new(1.0, 0.0)).norm() < 1e-9);
         let wn: f64 = w.iter().map(|x| x.norm_sqr()).sum();
         let an: f64 = d[..4].iter().map(|x| x.norm_sqr()).sum();

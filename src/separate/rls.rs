@@ -427,6 +427,7 @@ fn settle(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dsp::inner;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
@@ -469,7 +470,7 @@ mod tests {
             };
             for n in 0..2000 {
                 let u: Vec<Complex> = (0..d.l).map(|_| cn(&mut rng)).collect();
-                let fixed: Complex = truth.iter().zip(&u).map(|(w, u)| w.conj() * u).sum();
+                let fixed: Complex = inner(&truth, &u);
                 let (ur, ui) = split(&u, d);
                 let e = output(&st, d, &ur, &ui, fixed);
                 let ok = adapt(&mut st, d, &ur, &ui, e, 1.0, 0.66, n, &step, &mut scratch);

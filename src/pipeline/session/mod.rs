@@ -19,7 +19,7 @@ use crate::label::Label;
 use crate::localize::Localizer;
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, Truth};
 use crate::separate::PitchPart;
-use crate::track::{SensorKey, Tracker, build_tracker, sensors_from_layout};
+use crate::track::{Tracker, build_tracker, sensors_from_layout};
 
 use super::config::{ConfigError, PipelineConfig};
 use super::input::{self, InputError};
@@ -454,8 +454,9 @@ impl Pipeline {
 
     /// Applies new settings to a running pipeline, keeping its tracks. Only what tunes a stage
     /// can change ([`LIVE_SETTINGS`]: the camera wait, box score threshold, gap bridging, use of
-    /// cameras, the tracker's sensor models and the separator except its framing); anything else
-    /// shapes a stage when it is built and is refused, naming the first such field.
+    /// cameras, the tracker's sensor models and clutter estimation, and the separator except its
+    /// framing); anything else shapes a stage when it is built and is refused, naming the first
+    /// such field.
     pub fn update_config(&mut self, cfg: PipelineConfig) -> Result<(), ConfigError> {
         cfg.validate()?;
         let as_value = |c: &PipelineConfig| {
@@ -489,6 +490,9 @@ impl Pipeline {
                     .map(|(_, m)| m)
                     .collect();
                 tracker.set_sensors(models).map_err(|e| e.within("track"))?;
+                if changed.iter().any(|f| f.starts_with("track.clutter.")) {
+                    tracker.set_clutter(&cfg.track.clutter);
+                }
             }
         }
         if separate && let Some(sep) = self.separation.as_mut() {
@@ -515,14 +519,6 @@ impl Pipeline {
             })
             .collect()
     }
-
-    /// Keys of the tracker's sensors, in sensor-index order (for diagnostics).
-    pub fn sensor_keys(&self) -> Vec<SensorKey> {
-        match &self.source {
-            TrackSource::Tracker { routes, .. } => routes.keys().to_vec(),
-            TrackSource::Oracle(..) => Vec::new(),
-        }
-    }
 }
 
 /// Settings (dotted paths, with everything below them) that [`Pipeline::update_config`] can change
@@ -540,6 +536,7 @@ pub const LIVE_SETTINGS: &[&str] = &[
     "track.camera.p_detect",
     "track.camera.clutter_rate",
     "track.camera.filter",
+    "track.clutter",
     "separate",
 ];
 
