@@ -183,8 +183,9 @@ pub(super) async fn get_settings(
 /// Changes settings (a JSON merge patch over the settings in force). What can change live:
 /// `camera_wait_s`, `min_box_score`, `max_gap_s`, `max_lead_s`, `cameras`, the tracker's sensor
 /// models (`track.audio_position`, `track.audio_direction`, `track.camera` noise, detection and
-/// clutter) and the separator except `separate.frame` and `separate.hop`; any other change is
-/// refused with 409 `not_live` naming the field. A refused change changes nothing.
+/// clutter), the clutter-rate estimation (`track.clutter`; turned off, every sensor is back on its
+/// configured rate) and the separator except `separate.frame` and `separate.hop`; any other change
+/// is refused with 409 `not_live` naming the field. A refused change changes nothing.
 #[utoipa::path(
     patch,
     path = "/v1/sessions/{id}/settings",

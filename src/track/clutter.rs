@@ -148,6 +148,19 @@ pub(crate) fn carry_over<const N: usize>(old: &[Sensor<N>], new: &mut [Sensor<N>
     }
 }
 
+/// Applies new estimation settings: the running estimates go on under a new time constant,
+/// and are dropped (back to the configured rates) when the estimate is turned off.
+pub(crate) fn reconfigure<const N: usize>(
+    current: &mut ClutterConfig,
+    new: &ClutterConfig,
+    sensors: &mut [Sensor<N>],
+) {
+    if !new.estimate {
+        reset(sensors);
+    }
+    *current = new.clone();
+}
+
 /// Forgets the estimates (a tracker reset starts over from the configured rates).
 pub(crate) fn reset<const N: usize>(sensors: &mut [Sensor<N>]) {
     for s in sensors {

@@ -7,7 +7,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::birth::{Birth, BirthContext, BirthScan, BirthTerm, births_from_measurements};
 use super::clutter;
-use super::config::{ConfigError, TrackerConfig};
+use super::config::{ClutterConfig, ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::Transition;
 use super::gaussian::Gaussian;
@@ -307,6 +307,10 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
         // Pending births refer to measurements of the old calibration.
         self.pending.clear();
         Ok(())
+    }
+
+    fn set_clutter(&mut self, cfg: &ClutterConfig) {
+        clutter::reconfigure(&mut self.cfg.clutter, cfg, &mut self.sensors);
     }
 
     fn reset(&mut self) {

@@ -15,7 +15,7 @@ use crate::eval::assignment::{CostMatrix, assign};
 
 use super::birth::{BirthContext, BirthScan, BirthTerm, births_from_measurements};
 use super::clutter;
-use super::config::{ConfigError, TrackerConfig};
+use super::config::{ClutterConfig, ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::{Transition, prepare};
 use super::gaussian::Gaussian;
@@ -458,6 +458,10 @@ impl<const N: usize> Tracker for GmphdTracker<N> {
         (self.sensors, self.modes) = (compiled, modes);
         self.pending.clear();
         Ok(())
+    }
+
+    fn set_clutter(&mut self, cfg: &ClutterConfig) {
+        clutter::reconfigure(&mut self.cfg.clutter, cfg, &mut self.sensors);
     }
 
     fn reset(&mut self) {

@@ -187,6 +187,9 @@ pub trait Tracker: Send {
     fn step(&mut self, input: &StepInput) -> Vec<TrackEstimate>;
     /// Replaces the sensor models (live recalibration); tracks are kept.
     fn set_sensors(&mut self, sensors: Vec<SensorModel>) -> Result<(), ConfigError>;
+    /// Replaces the clutter-rate estimation settings (a live change); tracks are kept. Turning
+    /// the estimate off returns every sensor to its configured rate.
+    fn set_clutter(&mut self, cfg: &ClutterConfig);
     /// Forgets every track and starts over (the label counter restarts with the step index).
     fn reset(&mut self);
     /// Counters of input that could not be used.

@@ -116,3 +116,65 @@ fn a_refused_settings_change_changes_nothing() {
     refused.separate.null_loading = -1.0;
     assert_eq!(tracks_after(Some((refused, false))), untouched);
 }
+
+/// A camera frame at `t` with `n` face-sized boxes scattered over the 640 x 480 image, none in
+/// the same place twice (the frame index `i` moves them).
+fn scattered_frame(t: f64, i: u32, n: u32) -> DetectionFrame {
+    let boxes = (0..n)
+        .map(|b| {
+            let k = f64::from(i * n + b);
+            FaceBox {
+                x: (k * 173.3) % 580.0,
+                y: (k * 97.1) % 400.0,
+                w: 40.0,
+                h: 50.0,
+                score: None,
+                point: None,
+            }
+        })
+        .collect();
+    DetectionFrame {
+        t,
+        camera: 0,
+        boxes,
+    }
+}
+
+/// The camera's clutter rate, configured and estimated.
+fn camera_clutter(p: &Pipeline) -> (f64, f64) {
+    let c = p.clutter_rates().into_iter().find(|c| c.sensor == "cam0");
+    c.map(|c| (c.configured, c.estimated)).unwrap()
+}
+
+#[test]
+fn clutter_estimation_changes_on_a_live_session() {
+    let mut p = Pipeline::new(layout(false), PipelineConfig::default(), 1).unwrap();
+    let feed = |p: &mut Pipeline, from: u32, to: u32| {
+        for i in from..to {
+            p.push_detections(scattered_frame(0.125 * f64::from(i), i, 12))
+                .unwrap();
+        }
+    };
+    feed(&mut p, 0, 40);
+    let (configured, noisy) = camera_clutter(&p);
+    assert!(noisy > 5.0 * configured, "{noisy} against {configured}");
+
+    // A new time constant keeps the running estimate.
+    let mut cfg = p.config().clone();
+    cfg.track.clutter.time_constant_s = 1.0;
+    p.update_config(cfg.clone()).unwrap();
+    assert_eq!(camera_clutter(&p).1, noisy);
+
+    // Turned off, the camera is back on its configured rate and stays there.
+    cfg.track.clutter.estimate = false;
+    p.update_config(cfg.clone()).unwrap();
+    assert_eq!(camera_clutter(&p), (configured, configured));
+    feed(&mut p, 40, 60);
+    assert_eq!(camera_clutter(&p), (configured, configured));
+
+    // Turned on again, it learns the noisy detector anew.
+    cfg.track.clutter.estimate = true;
+    p.update_config(cfg).unwrap();
+    feed(&mut p, 60, 100);
+    assert!(camera_clutter(&p).1 > 5.0 * configured);
+}
