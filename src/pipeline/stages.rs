@@ -222,8 +222,16 @@ impl SensorRoutes {
         &self.keys
     }
 
-    /// Scans from the localiser's observations.
-    pub fn localized(&self, observations: &[ArrayObservation], scans: &mut Vec<Scan>) {
+    /// Scans from the localiser's observations, keeping the candidates whose own frame's SRP
+    /// reaches `min_fresh` (null standard deviations; 0 keeps every candidate, since a
+    /// candidate's own-frame SRP can be below zero).
+    pub fn localized(
+        &self,
+        observations: &[ArrayObservation],
+        min_fresh: f64,
+        scans: &mut Vec<Scan>,
+    ) {
+        let keep = |fresh: f64| min_fresh <= 0.0 || fresh >= min_fresh;
         for obs in observations {
             let a = obs.array;
             if self.source == AudioMeasurementSource::Device
@@ -233,28 +241,24 @@ impl SensorRoutes {
                 continue;
             }
             let (sensor, measurements, sounding) = if self.localized_positions[a] {
+                let kept = obs.points.iter().filter(|p| keep(p.fresh));
                 (
                     self.positions[a],
-                    obs.points
-                        .iter()
+                    kept.clone()
                         .map(|p| Measurement::Position(p.position))
                         .collect(),
-                    obs.points.iter().map(|p| p.sounding).collect(),
+                    kept.map(|p| p.sounding).collect(),
                 )
             } else {
-                let m = obs
-                    .doas
-                    .iter()
+                let kept = obs.doas.iter().filter(|d| keep(d.fresh));
+                let m = kept
+                    .clone()
                     .map(|d| Measurement::Direction {
                         azimuth: d.azimuth,
                         elevation: Some(d.elevation),
                     })
                     .collect();
-                (
-                    self.directions[a],
-                    m,
-                    obs.doas.iter().map(|d| d.sounding).collect(),
-                )
+                (self.directions[a], m, kept.map(|d| d.sounding).collect())
             };
             if let Some(sensor) = sensor {
                 scans.push(Scan {
@@ -540,5 +544,63 @@ mod tests {
         let err =
             OraclePitch::new(&missing, fs, &cfg, PitchPart::Both).expect_err("s1 has no signal");
         assert!(err.contains("\"s1\""), "{err}");
+    }
+}
+
+#[cfg(test)]
+mod fresh_tests {
+    use super::*;
+    use crate::localize::DirectionCandidate;
+
+    fn doa(azimuth_deg: f64, fresh: f64) -> DirectionCandidate {
+        let a = azimuth_deg.to_radians();
+        DirectionCandidate {
+            direction: Vec3::new(a.cos(), a.sin(), 0.0),
+            azimuth: a,
+            elevation: 0.0,
+            power: 0.3,
+            fresh,
+            sounding: fresh >= 5.0,
+        }
+    }
+
+    #[test]
+    fn the_smoothings_memory_of_a_talker_who_stopped_is_kept_from_the_tracker_when_asked() {
+        let layout = crate::protocol::inbound::tests::layout();
+        let mut cfg = PipelineConfig {
+            localized_measurements: LocalizedMeasurements::Directions,
+            ..PipelineConfig::default()
+        };
+        let obs = [ArrayObservation {
+            array: 0,
+            // A talker now, one who stopped a second ago, and a candidate below the null.
+            doas: vec![doa(30.0, 19.0), doa(135.0, 1.5), doa(-90.0, -0.7)],
+            points: Vec::new(),
+            activity: 0.9,
+        }];
+        let azimuths = |cfg: &PipelineConfig| -> Vec<f64> {
+            let routes = SensorRoutes::new(&layout, cfg, vec![SensorKey::ArrayDirections(0)]);
+            let mut scans = Vec::new();
+            routes.localized(&obs, cfg.localized_min_fresh_sigmas, &mut scans);
+            assert_eq!(scans.len(), 1);
+            assert_eq!(scans[0].sounding.len(), scans[0].measurements.len());
+            scans[0]
+                .measurements
+                .iter()
+                .map(|m| match m {
+                    Measurement::Direction { azimuth, .. } => azimuth.to_degrees().round(),
+                    other => panic!("{other:?}"),
+                })
+                .collect()
+        };
+        // By default only what sounds in this frame; 0 takes every candidate, memory and all.
+        assert_eq!(azimuths(&cfg), vec![30.0]);
+        cfg.localized_min_fresh_sigmas = 0.0;
+        assert_eq!(azimuths(&cfg), vec![30.0, 135.0, -90.0]);
+        cfg.localized_min_fresh_sigmas = -1.0;
+        assert_eq!(
+            cfg.validate().unwrap_err().field,
+            "localized_min_fresh_sigmas"
+        );
     }
 }

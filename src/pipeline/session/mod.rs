@@ -526,6 +526,7 @@ impl Pipeline {
 pub const LIVE_SETTINGS: &[&str] = &[
     "camera_wait_s",
     "min_box_score",
+    "localized_min_fresh_sigmas",
     "max_gap_s",
     "max_lead_s",
     "cameras",

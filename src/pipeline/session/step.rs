@@ -133,7 +133,11 @@ impl Pipeline {
         let estimates = match &mut self.source {
             TrackSource::Tracker { tracker, routes } => {
                 let mut scans: Vec<Scan> = Vec::new();
-                routes.localized(&observations, &mut scans);
+                routes.localized(
+                    &observations,
+                    self.cfg.localized_min_fresh_sigmas,
+                    &mut scans,
+                );
                 routes.devices(&device_frames, &mut scans);
                 if self.cfg.cameras {
                     routes.cameras(&camera_frames, &mut scans);
