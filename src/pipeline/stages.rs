@@ -477,6 +477,7 @@ impl OraclePitch {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::localize::DirectionCandidate;
     use crate::scene::TruthSource;
 
     fn source(id: &str, signal: Option<Vec<f32>>) -> TruthSource {
@@ -545,12 +546,6 @@ mod tests {
             OraclePitch::new(&missing, fs, &cfg, PitchPart::Both).expect_err("s1 has no signal");
         assert!(err.contains("\"s1\""), "{err}");
     }
-}
-
-#[cfg(test)]
-mod fresh_tests {
-    use super::*;
-    use crate::localize::DirectionCandidate;
 
     fn doa(azimuth_deg: f64, fresh: f64) -> DirectionCandidate {
         let a = azimuth_deg.to_radians();

@@ -181,7 +181,8 @@ pub(super) async fn get_settings(
 }
 
 /// Changes settings (a JSON merge patch over the settings in force). What can change live:
-/// `camera_wait_s`, `min_box_score`, `max_gap_s`, `max_lead_s`, `cameras`, the tracker's sensor
+/// `camera_wait_s`, `min_box_score`, `localized_min_fresh_sigmas`, `max_gap_s`, `max_lead_s`,
+/// `cameras`, the tracker's sensor
 /// models (`track.audio_position`, `track.audio_direction`, `track.camera` noise, detection and
 /// clutter), the clutter-rate estimation (`track.clutter`; turned off, every sensor is back on its
 /// configured rate) and the separator except `separate.frame` and `separate.hop`; any other change
