@@ -10,6 +10,7 @@ pub mod diarization;
 mod events;
 pub mod input;
 pub mod offline;
+mod oracle;
 mod oracle_mask;
 mod sensor_queue;
 mod separation;

@@ -18,9 +18,10 @@ use crate::separate::PitchPart;
 use super::config::{ConfigError, PipelineConfig};
 use super::diarization::{Diarizer, to_rttm};
 use super::input::InputError;
+use super::oracle::oracle_label;
 use super::oracle_mask::ideal_ratio_mask;
 use super::session::{Pipeline, PipelineStats};
-use super::stages::{SensorClutter, oracle_label};
+use super::stages::SensorClutter;
 use super::{PipelineEvent, SizeBounds};
 
 /// Options of an offline run.

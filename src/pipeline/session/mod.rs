@@ -23,10 +23,11 @@ use crate::track::{Tracker, build_tracker, sensors_from_layout};
 
 use super::config::{ConfigError, PipelineConfig};
 use super::input::{self, InputError};
+use super::oracle::OraclePitch;
 use super::sensor_queue::SensorQueue;
 use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
 use super::speaking::SpeakingFilter;
-use super::stages::{OraclePitch, SensorClutter, SensorRoutes, Timeline};
+use super::stages::{SensorClutter, SensorRoutes, Timeline};
 use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
 /// Counters of a pipeline's life, for summaries and metrics.

@@ -6,6 +6,7 @@ use std::collections::BTreeSet;
 use super::{Pipeline, TrackSource};
 use crate::label::Label;
 use crate::localize::Localizer;
+use crate::pipeline::oracle;
 use crate::pipeline::sensor_queue::SensorQueue;
 use crate::pipeline::speaking::SpeakingFilter;
 use crate::pipeline::stages::{self, Estimate};
@@ -152,7 +153,7 @@ impl Pipeline {
                 );
                 est
             }
-            TrackSource::Oracle(truth, _) => stages::oracle_estimates(truth, t_est),
+            TrackSource::Oracle(truth, _) => oracle::oracle_estimates(truth, t_est),
         };
         self.timeline.push(t_est, estimates.clone(), activity);
         self.emit_tracks(k, t_est, &estimates, sink);
@@ -170,7 +171,7 @@ impl Pipeline {
                 end_sample,
                 &self.clock,
                 |t| match oracle {
-                    Some((truth, pitch)) => stages::oracle_targets(truth, t, activity, pitch),
+                    Some((truth, pitch)) => oracle::oracle_targets(truth, t, activity, pitch),
                     None => timeline.targets_at(t),
                 },
                 sink,
