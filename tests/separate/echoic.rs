@@ -120,10 +120,12 @@ fn a_silent_label_beside_a_far_reverberant_talker_keeps_out_of_its_harmonics() {
     };
     let (on, off) = (leak(&SeparatorConfig::default()), leak(&gate_off));
     println!("silent label's stream against the talker's: gate on {on:.1} dB, off {off:.1} dB");
-    // About -5.8 against -4.8 dB (speech seeds 4-6: 0.5 to 1.5 dB apart). Most of what the
-    // silent label keeps is the reverberation its spatial gain passes, which no pitch rule
-    // removes.
-    assert!(on < off - 0.5, "gate on {on:.1} dB, off {off:.1} dB");
+    // About -11.7 against -8.1 dB. Most of what the silent label keeps is the reverberation
+    // its spatial gain passes, which no pitch rule removes. The bound also guards the low
+    // band's rule (`direct_power::LOW_BAND_MAX_COSINE`): counting the bins where the line
+    // cannot tell the silent label from the diffuse field, the gate left -6.1 dB, worse than
+    // none.
+    assert!(on < off - 2.0, "gate on {on:.1} dB, off {off:.1} dB");
 }
 
 /// Scene knobs of the survey from `AVSEP_SCENE` ("radius=0.05,rt60=0.3,snr=25,seconds=10,seed=1").
@@ -316,7 +318,7 @@ fn a_vowel_without_upper_harmonics_keeps_its_voice_when_a_neighbour_joins_in_uni
         dark(&on),
         dark(&off)
     );
-    // Measured: dark voice +4.6 against +1.2 dB; SIR improvement +3.2 against +1.7 dB.
+    // Measured: dark voice +4.3 against +1.1 dB; SIR improvement +3.1 against +1.7 dB.
     assert!(dark(&on) > dark(&off) + 2.0);
     assert!(on.sir_improvement() > off.sir_improvement() + 1.0);
 }

@@ -194,18 +194,20 @@ pub struct HarmonicConfig {
     pub activity_high: f64,
     /// Smoothing factor per frame of each label's dominance.
     pub activity_smoothing: f64,
-    /// Also fit 250 Hz-1 kHz, where the array resolves nearby labels poorly, and read a label's
-    /// dominance as the mean of its dominances there and in 1-4 kHz, so a vowel with no power
-    /// above 1 kHz (a nasal murmur, a dark back vowel) still opens its label's gate. On against
-    /// off, full pipeline, SI-SDRi (dB) / streams per talker / half-second blocks on another
-    /// label: paper-linear6 seeds 1-48 +7.82 / 1.146 / 30 against +7.82 / 1.160 / 35; recorded
-    /// speech on paper-linear6 seeds 1-36 +5.28 / 1.157 / 26 against +5.69 / 1.185 / 30, on
-    /// uca8 seeds 1-12 +6.00 / 1.222 / 56 against +6.14 / 1.222 / 47; uca8 seeds 1-6 +9.27 /
-    /// 1.111 / 15 against +8.74 / 1.111 / 18. Off by default because it undoes the gate where
-    /// the low band cannot tell labels apart: a silent label beside a far reverberant talker
-    /// keeps -6.5 dB of the talker against -10.1 dB (gate off -6.7), and a dark vowel joined in
-    /// unison by a brighter neighbour on an unresolved pair keeps +1.1 dB SI-SDR against
-    /// +3.9 dB.
+    /// Also fit 250 Hz-1 kHz and read a label's dominance as the mean of its dominances there
+    /// and in 1-4 kHz, so a vowel with no power above 1 kHz (a nasal murmur, a dark back vowel),
+    /// or a far talker whose direct path holds little of the band above it in a reverberant
+    /// room, still opens its label's gate. The low band counts a label's bin only where the
+    /// array tells the label from the other labels and from the diffuse field
+    /// (`separate::direct_power::LOW_BAND_MAX_COSINE`): counting every bin undid the gate for a
+    /// silent label beside a talker on a small array. On against off, full pipeline, SI-SDRi
+    /// (dB) / streams per talker: `two-arrays` seeds 1-12 +3.87 / 1.556 against +3.16 /
+    /// 1.722, recorded speech seeds 1-6 +2.39 / 1.556 against +1.45 / 1.722; uca8 seeds 1-18
+    /// +9.37 / 1.148 against +9.30 / 1.130, seeds 19-30 +9.96 / 1.056 against +9.86 / 1.083,
+    /// recorded seeds 1-12 +6.60 against +6.63, 13-20 +7.72 against +7.70 (1.139 and 1.042
+    /// both); paper-linear6 seeds 1-48 +7.87 / 1.139 against +7.89 / 1.153, seeds 49-72
+    /// +7.99 / 1.222 against +8.03 / 1.208, recorded seeds 1-36 +6.43 / 1.093 against +6.47 /
+    /// 1.130, 37-52 +6.70 against +6.78 (1.083 both).
     pub activity_low_band: bool,
     /// A voiced segment that starts with the gate open is held open while its comb stays
     /// voiced and its F0 moves by less than this fraction per frame, and while held the label
@@ -313,7 +315,7 @@ impl Default for HarmonicConfig {
             activity_low: 0.015,
             activity_high: 0.12,
             activity_smoothing: 0.5,
-            activity_low_band: false,
+            activity_low_band: true,
             activity_hold: 0.04,
             activity_hold_max_s: 0.5,
             salience_whitening: 0.5,

@@ -34,15 +34,39 @@ fn mean_dominances_with(
     powers: &[f64],
     diffuse: f64,
     frames: usize,
-    (low_band, top_hz): (bool, f64),
+    band: (bool, f64),
 ) -> Vec<f64> {
-    let mics = line6();
+    let (mics, cosine) = (line6(), LOW_BAND_MAX_COSINE);
+    mean_dominances_counting(&mics, (positions, powers), diffuse, frames, band, cosine)
+}
+
+/// Eight microphones on a circle of 10 cm radius round the line's centre (a `two-arrays` array).
+fn circle8() -> Vec<Vec3> {
+    (0..8)
+        .map(|i| {
+            let a = std::f64::consts::TAU * f64::from(i) / 8.0;
+            Vec3::new(3.0 + 0.1 * a.cos(), 3.25 + 0.1 * a.sin(), 1.95)
+        })
+        .collect()
+}
+
+/// [`mean_dominances_with`] on microphones `mics`, the low band counting a label's bin below
+/// `max_cosine`.
+fn mean_dominances_counting(
+    mics: &[Vec3],
+    (positions, powers): (&[Vec3], &[f64]),
+    diffuse: f64,
+    frames: usize,
+    (low_band, top_hz): (bool, f64),
+    max_cosine: f64,
+) -> Vec<f64> {
     let (c, hz_per_bin, bins) = (343.0, 15.625, 513);
-    let mut fit = DirectPowerFit::new(&mics, c, hz_per_bin, bins, low_band);
+    let mut fit = DirectPowerFit::new(mics, c, hz_per_bin, bins, low_band);
+    fit.low_band_max_cosine = max_cosine;
     let reference = mics[0];
     let steer: Vec<Steering> = positions
         .iter()
-        .map(|p| Steering::near_field(&mics, &reference, p, c))
+        .map(|p| Steering::near_field(mics, &reference, p, c))
         .collect();
     let n = positions.len();
     let m = mics.len();
@@ -124,23 +148,83 @@ fn a_silent_label_beside_a_reverberant_talker_rarely_dominates_a_bin() {
 #[test]
 fn a_talker_silent_above_1_khz_dominates_only_with_the_low_band() {
     // A dark vowel 1.5 m away at 110 degrees and a silent label at 62 degrees, in a weak
-    // diffuse field: above 1 kHz there is nothing of the talker to measure.
+    // diffuse field: above 1 kHz there is nothing of the talker to measure. A 10 cm circle of
+    // eight resolves both labels and the diffuse field from about 400 Hz.
+    let (mics, cosine) = (circle8(), LOW_BAND_MAX_COSINE);
     let labels = [at(110.0, 1.5), at(62.0, 1.5)];
-    let off = mean_dominances_with(&labels, &[1.0, 0.0], 0.1, 60, (false, 1000.0));
-    let on = mean_dominances_with(&labels, &[1.0, 0.0], 0.1, 60, (true, 1000.0));
+    let dominances = |low_band: bool, top_hz: f64| {
+        let scene = (&labels[..], &[1.0, 0.0][..]);
+        mean_dominances_counting(&mics, scene, 0.1, 60, (low_band, top_hz), cosine)
+    };
+    let (off, on) = (dominances(false, 1000.0), dominances(true, 1000.0));
     // Without it neither label dominates what the diffuse field leaves above 1 kHz (each by
-    // chance in about 6 % of the bins).
+    // chance in under 1 % of the bins).
     assert!(off[0] < 0.1 && off[1] < 0.1, "{off:?}");
     // With it the talker dominates the low band's bins and the silent label hardly any (about
-    // 0.53 and 0.03).
+    // 0.49 and 0.001).
     assert!(on[0] > 0.3 && on[1] < 0.25 * on[0], "{on:?}");
     // A talker with power in both bands dominates in both.
-    let both_off = mean_dominances_with(&labels, &[1.0, 0.0], 0.1, 60, (false, f64::INFINITY));
-    let both_on = mean_dominances_with(&labels, &[1.0, 0.0], 0.1, 60, (true, f64::INFINITY));
+    let (both_off, both_on) = (
+        dominances(false, f64::INFINITY),
+        dominances(true, f64::INFINITY),
+    );
     assert!(
         both_on[0] > 0.5 * both_off[0] && both_on[1] < 0.25 * both_on[0],
         "{both_on:?} against {both_off:?}"
     );
+}
+
+#[test]
+fn the_low_band_counts_a_label_only_where_the_array_tells_it_from_the_others() {
+    // A talker with nothing above 1 kHz at 62 degrees and a silent label 10 degrees from it,
+    // in a weak diffuse field: a 20 cm line tells neither label from the other, nor from the
+    // diffuse field, below about 750 Hz.
+    let labels = [at(62.0, 1.5), at(72.0, 1.5)];
+    let band = (true, 1000.0);
+    let scene = (&labels[..], &[1.0, 0.0][..]);
+    let all = mean_dominances_counting(&line6(), scene, 0.1, 60, band, 1.0);
+    let resolved = mean_dominances_with(&labels, &[1.0, 0.0], 0.1, 60, band);
+    // Counting every bin, the silent label takes a share of the talker's bins (about 0.07
+    // against the talker's 0.40). Counted only where resolved, the low band says little about
+    // either: each keeps about the main band's chance share, 0.02.
+    assert!(all[1] > 0.05 && all[0] > 0.3, "{all:?}");
+    assert!(resolved[1] < 0.5 * all[1], "{resolved:?}");
+    // On the circle a label far from the talker keeps its low band (about 0.49 against 0.001).
+    let apart = [at(62.0, 1.5), at(120.0, 1.5)];
+    let scene = (&apart[..], &[1.0, 0.0][..]);
+    let far = mean_dominances_counting(&circle8(), scene, 0.1, 60, band, LOW_BAND_MAX_COSINE);
+    assert!(far[0] > 0.3 && far[1] < 0.25 * far[0], "{far:?}");
+}
+
+#[test]
+fn resolved_labels_reads_the_cosines_of_the_gram_matrix() {
+    // Three labels and the diffuse term, each of norm 2: labels 0 and 1 nearly collinear
+    // (cosine 0.9), label 2 apart from both, every label at cosine 0.3 from the diffuse term.
+    let (n, nn) = (3, 4);
+    let mut gram = vec![0.0; nn * nn];
+    let set = |g: &mut [f64], i: usize, j: usize, v: f64| {
+        g[i * nn + j] = v;
+        g[j * nn + i] = v;
+    };
+    for i in 0..nn {
+        set(&mut gram, i, i, 4.0);
+    }
+    set(&mut gram, 0, 1, 3.6);
+    set(&mut gram, 0, 2, 0.4);
+    for i in 0..n {
+        set(&mut gram, i, n, 1.2);
+    }
+    assert_eq!(resolved_labels(&gram, n, 0.8), 0b100);
+    assert_eq!(resolved_labels(&gram, n, 0.95), 0b111);
+    // A label alike with the diffuse field (a small array's low bins) is not resolved either.
+    set(&mut gram, 2, n, 3.6);
+    assert_eq!(resolved_labels(&gram, n, 0.8), 0b000);
+    assert_eq!(resolved_labels(&gram, n, 0.95), 0b111);
+    // A zero column (no steering) is never counted, and its NaN cosines do not stop the others.
+    set(&mut gram, 2, 2, 0.0);
+    set(&mut gram, 0, 2, 0.0);
+    set(&mut gram, 2, n, 0.0);
+    assert_eq!(resolved_labels(&gram, n, 0.95), 0b011);
 }
 
 /// One frame of two labels on every bin of the fit, each microphone reading `value`, in a frame
