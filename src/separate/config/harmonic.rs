@@ -190,7 +190,12 @@ pub struct HarmonicConfig {
     /// talker: paper-linear6 seeds 1-36 +5.90 / 1.231 against +5.69 / 1.185, uca8 seeds 1-12
     /// +6.23 / 1.222 against +6.14 / 1.222. The simulator's voices, more harmonic, lose with
     /// it: paper-linear6 seeds 1-48 +7.04 / 1.201 against +7.82 / 1.160, uca8 three talkers
-    /// +8.30 against +8.74.
+    /// +8.30 against +8.74. A far, reverberant room gains from a looser gate, where a talker's
+    /// direct path dominates few bins: 0.005 / 0.06 against the defaults, with the low band,
+    /// `two-arrays` seeds 1-12 +4.28 / 1.528 against +3.87 / 1.556 (oracle tracks +5.68 /
+    /// 1.389 against +5.26 / 1.472), uca8 seeds 1-18 +9.59 against +9.37, paper-linear6 seeds
+    /// 1-48 +7.95 against +7.87; recorded speech loses with it: paper-linear6 seeds 1-36 +6.12 /
+    /// 1.130 against +6.43 / 1.093, uca8 seeds 1-12 +6.45 against +6.60.
     pub activity_high: f64,
     /// Smoothing factor per frame of each label's dominance.
     pub activity_smoothing: f64,
