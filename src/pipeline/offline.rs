@@ -18,7 +18,7 @@ use crate::separate::PitchPart;
 use super::config::{ConfigError, PipelineConfig};
 use super::diarization::{Diarizer, to_rttm};
 use super::input::InputError;
-use super::oracle::oracle_label;
+use super::oracle;
 use super::oracle_mask::ideal_ratio_mask;
 use super::session::{Pipeline, PipelineStats};
 use super::stages::SensorClutter;
@@ -392,7 +392,12 @@ fn oracle_mask_streams(
     Ok(ideal_ratio_mask(&mixture, &refs, geometry)
         .into_iter()
         .enumerate()
-        .map(|(i, y)| (oracle_label(i), y.into_iter().map(|v| v as f32).collect()))
+        .map(|(i, y)| {
+            (
+                oracle::source_label(i),
+                y.into_iter().map(|v| v as f32).collect(),
+            )
+        })
         .collect())
 }
 

@@ -8,13 +8,13 @@ use crate::separate::{KnownPitch, PitchPart, SeparatorConfig, Target};
 
 use super::stages::Estimate;
 
-/// The label the oracle gives to true source `i`.
-pub fn oracle_label(i: usize) -> Label {
+/// The label the oracle gives to true source `i` (its streams and tracks carry it).
+pub fn source_label(i: usize) -> Label {
     Label::new(0, i as u32)
 }
 
 /// True sources present at `t` as estimates (for `--oracle-tracks`).
-pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
+pub fn estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
     truth
         .sources
         .iter()
@@ -30,7 +30,7 @@ pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
                 h
             };
             Some(Estimate {
-                label: oracle_label(i),
+                label: source_label(i),
                 position: p,
                 velocity: (b - a) / span,
                 existence: 1.0,
@@ -43,13 +43,8 @@ pub fn oracle_estimates(truth: &Truth, t: f64) -> Vec<Estimate> {
 
 /// True sources present at `t` as separator targets, with their true pitch when `pitch` is
 /// given (`--oracle-pitch`).
-pub fn oracle_targets(
-    truth: &Truth,
-    t: f64,
-    activity: f64,
-    pitch: Option<&OraclePitch>,
-) -> Vec<Target> {
-    oracle_estimates(truth, t)
+pub fn targets(truth: &Truth, t: f64, activity: f64, pitch: Option<&OraclePitch>) -> Vec<Target> {
+    estimates(truth, t)
         .into_iter()
         .map(|e| Target {
             label: e.label,
@@ -170,20 +165,17 @@ mod tests {
         assert_eq!(p.at(0, 5.0), VoicePitch::default());
         assert_eq!(p.at(0, -1.0), VoicePitch::default());
         assert_eq!(p.at(3, 1.0), VoicePitch::default());
-        let targets = oracle_targets(&truth, 1.0, 1.0, Some(&p));
-        assert_eq!(targets[0].pitch, Some(KnownPitch::Both(v)));
+        let with_pitch = targets(&truth, 1.0, 1.0, Some(&p));
+        assert_eq!(with_pitch[0].pitch, Some(KnownPitch::Both(v)));
         // A part of the pitch hands over that part only.
         for (part, known) in [
             (PitchPart::F0, KnownPitch::F0(v.f0)),
             (PitchPart::Voicing, KnownPitch::Voicing(v.voicing)),
         ] {
             let p = OraclePitch::new(&truth, fs, &cfg, part).expect("every source has a signal");
-            assert_eq!(
-                oracle_targets(&truth, 1.0, 1.0, Some(&p))[0].pitch,
-                Some(known)
-            );
+            assert_eq!(targets(&truth, 1.0, 1.0, Some(&p))[0].pitch, Some(known));
         }
-        assert_eq!(oracle_targets(&truth, 1.0, 1.0, None)[0].pitch, None);
+        assert_eq!(targets(&truth, 1.0, 1.0, None)[0].pitch, None);
 
         let missing = Truth {
             sources: vec![source("s1", None)],

@@ -153,7 +153,7 @@ impl Pipeline {
                 );
                 est
             }
-            TrackSource::Oracle(truth, _) => oracle::oracle_estimates(truth, t_est),
+            TrackSource::Oracle(truth, _) => oracle::estimates(truth, t_est),
         };
         self.timeline.push(t_est, estimates.clone(), activity);
         self.emit_tracks(k, t_est, &estimates, sink);
@@ -171,7 +171,7 @@ impl Pipeline {
                 end_sample,
                 &self.clock,
                 |t| match oracle {
-                    Some((truth, pitch)) => oracle::oracle_targets(truth, t, activity, pitch),
+                    Some((truth, pitch)) => oracle::targets(truth, t, activity, pitch),
                     None => timeline.targets_at(t),
                 },
                 sink,
