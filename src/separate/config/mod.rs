@@ -339,8 +339,10 @@ pub struct SeparatorConfig {
     /// a one-array layout is the same either way). Where talkers stand beyond a room's critical
     /// distance, the nulls of one beamformer over two arrays cost more than they remove.
     /// `two-arrays` preset, full pipeline, SI-SDRi (dB) / streams per talker, nearest against
-    /// all: seeds 1-12 +3.16 / 1.72 against +2.42 / 1.81, oracle tracks +4.52 / 1.67 against
-    /// +3.52 / 1.75; recorded speech seeds 1-6 +1.45 / 1.72 against +0.28 / 2.06.
+    /// all: seeds 1-12 +3.87 / 1.56 against +3.04 / 1.69, oracle tracks +5.26 / 1.47 against
+    /// +4.07 / 1.61; recorded speech seeds 1-6 +2.39 / 1.56 against +0.96 / 1.89 (before the
+    /// activity gate's low band: +3.16 / 1.72 against +2.42 / 1.81, recorded +1.45 against
+    /// +0.28).
     pub mics: MicSelection,
     /// Lowest frequency processed (Hz); bins below it are output as silence.
     pub min_frequency_hz: f64,
