@@ -6,6 +6,7 @@ use super::super::config::{
     ArrayConfig, ArrayGeometry, CameraConfig, FacingConfig, PointNoiseConfig, SimConfig,
     SpeakerConfig, SpeechConfig, VoiceConfig,
 };
+use super::super::validate::WALL_MARGIN_M;
 use super::super::{rng_for, streams};
 use super::{
     PresetOptions, base, draw_phrases, draw_voices, place_apart, r3, segment_hits_box, u, walk,
@@ -59,6 +60,7 @@ pub(super) fn two_arrays(opts: &PresetOptions, seed: u64) -> SimConfig {
         duration: d,
     };
     let voices = draw_voices(n, &mut rng);
+    let room = cfg.room.size_m;
     cfg.speakers = place_apart(d, || {
         let s: Vec<SpeakerConfig> = (0..n)
             .map(|i| {
@@ -68,10 +70,20 @@ pub(super) fn two_arrays(opts: &PresetOptions, seed: u64) -> SimConfig {
                 floor.walker(enters_late, leaves, voices[i].clone(), &mut rng)
             })
             .collect();
-        let clear = !s.iter().any(|t| floor.crosses_table(t));
+        // A long leg's bend (the walk to the door) can swing past a wall: draw again.
+        let clear =
+            !s.iter().any(|t| floor.crosses_table(t)) && s.iter().all(|t| stays_inside(t, room));
         (s, clear)
     });
     cfg
+}
+
+/// Whether every keyframe of a talker's path keeps the walls' margin in a room of `size` (m).
+fn stays_inside(s: &SpeakerConfig, size: [f64; 3]) -> bool {
+    let m = WALL_MARGIN_M;
+    s.path
+        .iter()
+        .all(|k| (1..3).all(|i| k[i] >= m && k[i] <= size[i - 1] - m))
 }
 
 /// Mean walking speed (m/s) of a talker heading for the door.
