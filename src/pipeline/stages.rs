@@ -9,7 +9,7 @@ use utoipa::ToSchema;
 
 use crate::geometry::{ArrayShape, Layout, Vec3, deg};
 use crate::label::Label;
-use crate::localize::ArrayObservation;
+use crate::localize::{ArrayObservation, DirectionCandidate};
 use crate::scene::format::{AudioMeasurementLine, DoaFile, TrackFile};
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, FaceBox};
 use crate::separate::Target;
@@ -239,26 +239,26 @@ impl SensorRoutes {
             {
                 continue;
             }
-            let (sensor, measurements, sounding) = if self.localized_positions[a] {
-                let kept = obs.points.iter().filter(|p| keep(p.fresh));
-                (
-                    self.positions[a],
-                    kept.clone()
-                        .map(|p| Measurement::Position(p.position))
-                        .collect(),
-                    kept.map(|p| p.sounding).collect(),
-                )
-            } else {
-                let kept = obs.doas.iter().filter(|d| keep(d.fresh));
-                let m = kept
-                    .clone()
-                    .map(|d| Measurement::Direction {
+            // One pass over the kept candidates gives both their measurements and soundings.
+            let (sensor, (measurements, sounding)): (_, (Vec<_>, Vec<_>)) =
+                if self.localized_positions[a] {
+                    let kept = obs.points.iter().filter(|p| keep(p.fresh));
+                    (
+                        self.positions[a],
+                        kept.map(|p| (Measurement::Position(p.position), p.sounding))
+                            .unzip(),
+                    )
+                } else {
+                    let kept = obs.doas.iter().filter(|d| keep(d.fresh));
+                    let direction = |d: &DirectionCandidate| Measurement::Direction {
                         azimuth: d.azimuth,
                         elevation: Some(d.elevation),
-                    })
-                    .collect();
-                (self.directions[a], m, kept.map(|d| d.sounding).collect())
-            };
+                    };
+                    (
+                        self.directions[a],
+                        kept.map(|d| (direction(d), d.sounding)).unzip(),
+                    )
+                };
             if let Some(sensor) = sensor {
                 scans.push(Scan {
                     sensor,
