@@ -126,6 +126,9 @@ pub fn room_mixture(
 pub struct Run {
     pub out: Vec<Vec<f64>>,
     pub parts: Vec<Vec<Vec<f64>>>,
+    /// Per frame: its centre's time (s) and each label index's voicing as the harmonic
+    /// grouping read it (0 where the label has none).
+    pub voicing: Vec<(f64, Vec<f64>)>,
 }
 
 /// Runs the separator over the mixture with targets from `targets(frame_index, time)`; source
@@ -151,6 +154,7 @@ pub fn run(
         .collect();
     let mut out = vec![Vec::new(); ns];
     let mut parts = vec![vec![Vec::new(); nparts]; ns];
+    let mut voicing = Vec::new();
     let mut frame_out = Vec::new();
     let mut part_out = Vec::new();
     let mut hop = vec![0.0; g.hop];
@@ -170,6 +174,13 @@ pub fn run(
         // The frame ends at sample a + hop; its centre is half a frame earlier.
         let t = (a + g.hop) as f64 / FS - g.frame as f64 / (2.0 * FS);
         sep.process_into(&spec, &targets(f, t), &mut frame_out);
+        let mut v = vec![0.0; ns];
+        for (label, p) in sep.pitches() {
+            if let Some(x) = v.get_mut(label.index as usize) {
+                *x = p.voicing;
+            }
+        }
+        voicing.push((t, v));
         for (i, ist) in istft.iter_mut().enumerate() {
             let bins = frame_out
                 .iter()
@@ -200,7 +211,11 @@ pub fn run(
     };
     out.iter_mut().for_each(align);
     parts.iter_mut().flatten().for_each(align);
-    Run { out, parts }
+    Run {
+        out,
+        parts,
+        voicing,
+    }
 }
 
 /// Oracle targets: every source at its true position, speaking from its true talk spurts.

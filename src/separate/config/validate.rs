@@ -169,6 +169,13 @@ impl HarmonicConfig {
         )?;
         unit_interval("activity", self.activity_low, self.activity_high)?;
         in_range("activity_smoothing", self.activity_smoothing, 0.0, 0.999)?;
+        in_range("activity_room_level", self.activity_room_level, 0.0, 1.0)?;
+        in_range(
+            "activity_room_memory_s",
+            self.activity_room_memory_s,
+            0.1,
+            3600.0,
+        )?;
         in_range("activity_hold", self.activity_hold, 0.0, 1.0)?;
         in_range("activity_hold_max_s", self.activity_hold_max_s, 0.0, 10.0)?;
         in_range("salience_whitening", self.salience_whitening, 0.0, 2.0)?;

@@ -32,7 +32,7 @@ mod periodicity;
 mod reading;
 mod track;
 
-pub use activity::Segment;
+pub use activity::{RoomLevel, Segment};
 #[cfg(test)]
 pub(crate) use fit::tests as fit_signals;
 pub use fit::{HarmonicFit, hann_transform};
@@ -133,6 +133,12 @@ pub struct Harmonic {
     /// Direct-path dominance ramp of the activity gate; `None` when the gate is off.
     activity: Option<(f64, f64)>,
     activity_smoothing: f64,
+    /// The room level at which the gate's thresholds hold as set; `None`: they always do.
+    room_reference: Option<f64>,
+    /// Forgetting per frame of the room level.
+    room_forgetting: f64,
+    /// Analysis frames per second.
+    frames_per_s: f64,
     /// Largest |ln| change of F0 per frame that continues a held voiced segment (0: no hold).
     hold_log_step: f64,
     /// Frames a segment may be held with the gate closed.
@@ -186,6 +192,10 @@ impl Harmonic {
                 .activity_gate
                 .then_some((cfg.activity_low, cfg.activity_high)),
             activity_smoothing: cfg.activity_smoothing,
+            room_reference: (cfg.activity_gate && cfg.activity_room_level > 0.0)
+                .then_some(cfg.activity_room_level),
+            room_forgetting: (-1.0 / (cfg.activity_room_memory_s * frames_per_s).max(1e-9)).exp(),
+            frames_per_s,
             hold_log_step: cfg.activity_hold.ln_1p(),
             hold_max_frames: (cfg.activity_hold_max_s * frames_per_s).round() as usize,
             hold_start_frames: if cfg.activity_smoothing > 0.0 {

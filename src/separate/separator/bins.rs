@@ -1,6 +1,7 @@
 //! The per-bin work of a frame: fixed beamformers, adaptation control, the adaptive stage and
 //! the post-filter.
 
+use super::grouping::room_scale;
 use super::{POWER_SMOOTHING, Separator, Work};
 use crate::dsp::Complex;
 use crate::label::Label;
@@ -73,7 +74,8 @@ impl Separator {
             && self.post.enabled();
         w.presence.clear();
         w.presence.extend(self.streams.iter().map(|s| {
-            let gate = gated.then(|| self.harmonic.gate_of(s.activity));
+            let scale = room_scale(&self.levels, &self.harmonic, s.group);
+            let gate = gated.then(|| self.harmonic.gate_of(s.activity, scale));
             target_presence(s.presence, gate)
         }));
     }

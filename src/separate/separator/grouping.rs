@@ -5,7 +5,7 @@
 use super::Separator;
 use super::bins::least_resolved;
 use crate::separate::KnownPitch;
-use crate::separate::harmonic::Pitch;
+use crate::separate::harmonic::{Harmonic, Pitch, RoomLevel};
 use crate::separate::stream::Stream;
 
 impl Separator {
@@ -32,15 +32,15 @@ impl Separator {
         self.harmonic
             .whitening(|k| y[k * ch + rf].norm_sqr(), self.k_lo, top, &mut w.level);
         w.audibility.clear();
-        w.audibility.extend(
-            self.streams
-                .iter()
-                .map(|s| self.harmonic.audibility(s.activity, s.comb_voicing)),
-        );
+        w.audibility.extend(self.streams.iter().map(|s| {
+            let scale = room_scale(&self.levels, &self.harmonic, s.group);
+            self.harmonic.audibility(s.activity, s.comb_voicing, scale)
+        }));
         for i in 0..n {
             let p = self.stream_pitch(i, to_ref, top);
             self.work.pitch.push(p);
         }
+        self.observe_rooms();
         let w = &mut self.work;
         w.ownership.resize(n, 0.0);
         w.evidence.resize(n, 0.0);
@@ -64,6 +64,21 @@ impl Separator {
             );
         }
         self.fit_harmonics(floor);
+    }
+
+    /// Folds each microphone group's strongest label this frame into its room level.
+    fn observe_rooms(&mut self) {
+        for (g, level) in self.levels.iter_mut().enumerate() {
+            let strongest = self
+                .streams
+                .iter()
+                .filter(|s| s.group == g)
+                .map(|s| s.activity)
+                .fold(None, |m: Option<f64>, a| Some(m.map_or(a, |m| m.max(a))));
+            if let Some(a) = strongest {
+                self.harmonic.observe_room(level, a);
+            }
+        }
     }
 
     /// Divides the low unresolved bins by the harmonic amplitude fit: as far as a stream's
@@ -173,6 +188,7 @@ impl Separator {
             return Pitch::default();
         }
         self.load_spectrum(i, to_ref, top);
+        let scale = room_scale(&self.levels, &self.harmonic, self.streams[i].group);
         let w = &mut self.work;
         let s = &mut self.streams[i];
         // The gate's smoothing runs whether or not the pitch is known, so its state does not
@@ -180,7 +196,7 @@ impl Separator {
         let gate = match self.direct.get(s.group) {
             Some(fit) => self
                 .harmonic
-                .activity_gate(&mut s.activity, fit.dominance(i)),
+                .activity_gate(&mut s.activity, fit.dominance(i), scale),
             None => 1.0,
         };
         let mut p = match s.known_pitch {
@@ -238,6 +254,13 @@ impl Separator {
         );
         p
     }
+}
+
+/// The activity gate's scale on microphone group `g` (1 without a room level there).
+pub(super) fn room_scale(levels: &[RoomLevel], harmonic: &Harmonic, g: usize) -> f64 {
+    levels
+        .get(g)
+        .map_or(1.0, |level| harmonic.room_scale(level))
 }
 
 /// A stream's memory at a bin counts against the strongest stream's memory there plus this

@@ -7,6 +7,7 @@ mod grouping;
 use super::Target;
 use super::config::{ConfigError, SeparatorConfig};
 use super::direct_power::DirectPowerFit;
+use super::harmonic::RoomLevel;
 use super::harmonic::{Harmonic, HarmonicFit, Periodicity, Pitch};
 use super::lifecycle::Timing;
 use super::nnls::Nnls;
@@ -172,6 +173,9 @@ pub struct Separator {
     /// Per microphone group: the direct-path power fit of the harmonic grouping's activity gate
     /// (empty when the gate is off).
     direct: Vec<DirectPowerFit>,
+    /// Per microphone group: the room level that scales the activity gate's thresholds (empty
+    /// when the gate is off).
+    levels: Vec<RoomLevel>,
     psd: Vec<f64>,
     psd_ready: bool,
     /// Smoothed power of the reference microphone per bin (post-filter).
@@ -214,6 +218,7 @@ impl Separator {
             harmonic_fit: HarmonicFit::default(),
             periodicity: Periodicity::new(4, 16000.0, 70.0, 400.0),
             direct: Vec::new(),
+            levels: Vec::new(),
             psd: Vec::new(),
             psd_ready: false,
             ref_power: Vec::new(),
@@ -456,6 +461,11 @@ impl Separator {
         } else {
             Vec::new()
         };
+        self.levels = self
+            .direct
+            .iter()
+            .map(|_| self.harmonic.room_level())
+            .collect();
         let maxm = self
             .groups
             .iter()
