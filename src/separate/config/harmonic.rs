@@ -289,14 +289,16 @@ pub struct HarmonicConfig {
     /// only wholly voiced frames, whose comb score reaches `voicing_high`). Fitting every voiced
     /// frame (0) gains more on the simulator's voices (paper-linear6 +7.56 / 1.14, uca8 +8.76)
     /// but loses on recorded speech (+4.68 and +5.22 dB), whose partly voiced frames the model
-    /// of steady harmonics fits badly; 0.7 and 0.9 fall between. Re-measured later, 0 against
-    /// 1, full pipeline, SI-SDRi (dB) / streams per talker / half-second blocks on another
-    /// label: paper-linear6 seeds 1-48 +8.27 / 1.118 / 27 against +7.89 / 1.153 / 33, seeds
-    /// 49-72 +8.42 / 1.208 / 19 against +8.03 / 1.208 / 22; recorded speech seeds 1-36 +6.12 /
-    /// 1.083 / 9 against +6.47 / 1.130 / 17, seeds 37-52 +6.32 against +6.78 (4 blocks either
-    /// way); uca8 seeds 1-18 +9.59 against +9.30, recorded +6.36 against +6.63. 0.5: +8.05 /
-    /// 28 and +6.35 / 15. The lower threshold only for labels the tracker hears speaking
-    /// (presence 0.5 or more) kept recorded speech's loss (+6.23) without the gain (+8.03 / 36).
+    /// of steady harmonics fits badly; 0.7 and 0.9 fall between. Re-measured on the current
+    /// defaults, 0 against 1, full pipeline, SI-SDRi (dB) / streams per talker / half-second
+    /// blocks on another label: paper-linear6 seeds 1-48 +8.30 / 1.111 / 29 against +7.87 /
+    /// 1.139 / 35, seeds 49-72 +8.38 / 1.208 / 19 against +7.99 / 1.222 / 23; recorded speech
+    /// seeds 1-36 +6.07 / 1.083 / 10 against +6.43 / 1.093 / 12, seeds 37-52 +6.30 / 1.083 / 5
+    /// against +6.70 / 1.083 / 4; uca8 seeds 1-18 +9.62 / 1.111 against +9.37 / 1.148,
+    /// recorded seeds 1-12 +6.32 against +6.60. On an earlier landing 0.5 gave paper-linear6
+    /// +8.05 / 28 and recorded +6.35 / 15 (against +7.89 / 33 and +6.47 / 17 then), and the
+    /// lower threshold only for labels the tracker hears speaking (presence 0.5 or more) kept
+    /// recorded speech's loss (+6.23) without the gain (+8.03 / 36).
     pub fit_min_voicing: f64,
     /// Smoothing per frame of each label's memory of its fitted power per bin (0.9: a time
     /// constant of about 0.3 s at 32 ms hops); a harmonic's claim in the fit is weighted by

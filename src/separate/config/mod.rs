@@ -326,10 +326,12 @@ pub struct SeparatorConfig {
     /// paper-linear6 seeds 1-12 +8.32 / 1.25 against +7.41 / 1.08, uca8 three talkers seeds
     /// 1-6 +9.56 against +8.95; recorded speech on paper-linear6 +4.83 against +5.11, on
     /// uca8 +5.96 against +5.82; a whole uca8 scene 0.041 against 0.028 of real time.
-    /// Re-measured later, blocks on another label added: paper-linear6 seeds 1-48 +8.54 /
-    /// 1.118 / 31 against +7.89 / 1.153 / 33, seeds 49-72 +8.45 / 1.222 / 21 against +8.03 /
-    /// 1.208 / 22; recorded speech seeds 1-36 +6.26 / 1.111 / 15 against +6.47 / 1.130 / 17,
-    /// seeds 37-52 +6.61 / 1.104 / 5 against +6.78 / 1.083 / 4.
+    /// Re-measured on the current defaults, blocks on another label added: paper-linear6
+    /// seeds 1-48 +8.54 / 1.132 / 33 against +7.87 / 1.139 / 35, seeds 49-72 +8.48 / 1.222 /
+    /// 21 against +7.99 / 1.222 / 23; recorded speech seeds 1-36 +6.21 / 1.120 / 17 against
+    /// +6.43 / 1.093 / 12, seeds 37-52 +6.56 / 1.104 / 5 against +6.70 / 1.083 / 4; uca8
+    /// seeds 1-18 +10.13 / 1.111 against +9.37 / 1.148, recorded seeds 1-12 +6.77 / 1.167
+    /// against +6.60 / 1.139.
     pub frame: usize,
     /// STFT hop in samples (512; the paper uses 1024).
     pub hop: usize,
