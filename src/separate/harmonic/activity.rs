@@ -183,8 +183,7 @@ impl Harmonic {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{FS, N, harmonic};
-    use super::*;
+    use super::super::tests::{harmonic, harmonic_with};
     use crate::separate::config::HarmonicConfig;
 
     #[test]
@@ -202,7 +201,7 @@ mod tests {
             competitor_audibility_exponent: 0.0,
             ..HarmonicConfig::default()
         };
-        let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+        let off = harmonic_with(&cfg);
         assert_eq!(off.audibility(0.0, 0.0, 1.0), 1.0);
     }
 
@@ -247,7 +246,7 @@ mod tests {
             activity_room_level: 0.0,
             ..HarmonicConfig::default()
         };
-        let h = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+        let h = harmonic_with(&cfg);
         let mut level = h.room_level();
         for _ in 0..1000 {
             h.observe_room(&mut level, 0.01);

@@ -205,7 +205,7 @@ impl Harmonic {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{FS, N, harmonic, spectrum, voiced};
+    use super::super::tests::{FS, N, harmonic, harmonic_with, spectrum, voiced};
     use super::*;
     use crate::separate::config::HarmonicConfig;
 
@@ -287,7 +287,7 @@ mod tests {
             periodicity_weight: 0.0,
             ..HarmonicConfig::default()
         };
-        let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+        let off = harmonic_with(&cfg);
         assert_eq!(search(&off, Some(&per)), alone);
     }
 }

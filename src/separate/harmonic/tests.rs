@@ -7,11 +7,12 @@ pub(super) const FS: f64 = 16000.0;
 pub(super) const N: usize = 1024;
 
 pub(super) fn harmonic() -> Harmonic {
-    Harmonic::new(
-        &HarmonicConfig::default(),
-        FS / N as f64,
-        FS / (N / 2) as f64,
-    )
+    harmonic_with(&HarmonicConfig::default())
+}
+
+/// The grouping with settings `cfg` at the tests' frame (`N` at `FS`, hop `N / 2`).
+pub(super) fn harmonic_with(cfg: &HarmonicConfig) -> Harmonic {
+    Harmonic::new(cfg, FS / N as f64, FS / (N / 2) as f64)
 }
 
 /// Magnitude spectrum of one Hann-windowed frame of `x`.
@@ -194,7 +195,7 @@ fn of_two_labels_reading_one_f0_the_one_whose_register_holds_it_keeps_its_harmon
         register_ownership: 0.0,
         ..HarmonicConfig::default()
     };
-    let flat = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+    let flat = harmonic_with(&cfg);
     let tied = [
         flat.pitch(
             &mag,
@@ -222,7 +223,7 @@ fn register_off_leaves_the_search_alone() {
         register_semitones: 0.0,
         ..HarmonicConfig::default()
     };
-    let h = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+    let h = harmonic_with(&cfg);
     let rel = vec![1.0; N / 2 + 1];
     let mut reg = Register::default();
     for _ in 0..32 {
@@ -352,14 +353,10 @@ fn an_unresolved_bin_goes_to_the_label_whose_comb_passes_through_it() {
     h.regroup(&mut g, &[0.9, 0.9], &[0.0, 0.0], 0.05, &mut Vec::new());
     assert!(g[0] > 0.45 + 0.01 && g[0] < 0.6 - 0.01, "{g:?}");
     assert!((g[0] + g[1] - 0.9).abs() < 1e-12);
-    let spatial = Harmonic::new(
-        &HarmonicConfig {
-            spatial_discount: 0.0,
-            ..HarmonicConfig::default()
-        },
-        FS / N as f64,
-        FS / (N / 2) as f64,
-    );
+    let spatial = harmonic_with(&HarmonicConfig {
+        spatial_discount: 0.0,
+        ..HarmonicConfig::default()
+    });
     let mut g = vec![0.6, 0.3];
     spatial.regroup(&mut g, &[1.0, 1.0], &[0.0, 0.0], 0.05, &mut Vec::new());
     assert!((g[0] - 0.6).abs() < 1e-12 && (g[1] - 0.3).abs() < 1e-12);
@@ -425,14 +422,10 @@ fn whitening_is_the_local_rms_magnitude_to_its_power() {
         );
     }
     // Off: every divisor is 1.
-    let off = Harmonic::new(
-        &HarmonicConfig {
-            salience_whitening: 0.0,
-            ..HarmonicConfig::default()
-        },
-        FS / N as f64,
-        FS / (N / 2) as f64,
-    );
+    let off = harmonic_with(&HarmonicConfig {
+        salience_whitening: 0.0,
+        ..HarmonicConfig::default()
+    });
     off.whitening(|k| power[k], lo, len, &mut out);
     assert!(out.iter().all(|&v| v == 1.0));
 }
@@ -555,7 +548,7 @@ fn a_label_whose_gate_never_opened_has_nothing_to_hold() {
         activity_hold: 0.0,
         ..HarmonicConfig::default()
     };
-    let off = Harmonic::new(&cfg, FS / N as f64, FS / (N / 2) as f64);
+    let off = harmonic_with(&cfg);
     assert_eq!(off.hold(&mut held, &voiced_pitch(130.0), 1.0), 1.0);
     assert_eq!(off.hold(&mut held, &voiced_pitch(130.0), 0.0), 0.0);
 }
