@@ -27,6 +27,11 @@ fn check_range(field: &str, v: f64, lo: f64, hi: f64, unit: &str) -> Result<(), 
     }
 }
 
+/// Whether `p` lies inside a room of `size` (m), at least `margin` from every wall.
+pub(super) fn inside_room(p: [f64; 3], size: [f64; 3], margin: f64) -> bool {
+    (0..3).all(|k| p[k] >= margin && p[k] <= size[k] - margin)
+}
+
 fn check_finite(field: &str, v: &[f64]) -> Result<(), SimError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(())
@@ -192,7 +197,7 @@ impl SimConfig {
     fn check_inside(&self, field: &str, p: [f64; 3], margin: f64) -> Result<(), SimError> {
         check_finite(field, &p)?;
         let s = self.room.size_m;
-        if (0..3).all(|k| p[k] >= margin && p[k] <= s[k] - margin) {
+        if inside_room(p, s, margin) {
             Ok(())
         } else {
             Err(err(

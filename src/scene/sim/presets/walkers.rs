@@ -6,7 +6,7 @@ use super::super::config::{
     ArrayConfig, ArrayGeometry, CameraConfig, FacingConfig, PointNoiseConfig, SimConfig,
     SpeakerConfig, SpeechConfig, VoiceConfig,
 };
-use super::super::validate::WALL_MARGIN_M;
+use super::super::validate::{WALL_MARGIN_M, inside_room};
 use super::super::{rng_for, streams};
 use super::{
     PresetOptions, base, draw_phrases, draw_voices, place_apart, r3, segment_hits_box, u, walk,
@@ -78,12 +78,12 @@ pub(super) fn two_arrays(opts: &PresetOptions, seed: u64) -> SimConfig {
     cfg
 }
 
-/// Whether every keyframe of a talker's path keeps the walls' margin in a room of `size` (m).
+/// Whether every keyframe of a talker's path keeps the walls' margin in a room of `size` (m),
+/// as the scene's validation requires.
 fn stays_inside(s: &SpeakerConfig, size: [f64; 3]) -> bool {
-    let m = WALL_MARGIN_M;
     s.path
         .iter()
-        .all(|k| (1..3).all(|i| k[i] >= m && k[i] <= size[i - 1] - m))
+        .all(|k| inside_room([k[1], k[2], s.mouth_height_m], size, WALL_MARGIN_M))
 }
 
 /// Mean walking speed (m/s) of a talker heading for the door.
