@@ -14,7 +14,7 @@ const LEVEL_QUANTILE: f64 = 0.75;
 
 /// Seconds of frames at the reference level that a new [`RoomLevel`] starts with, so the gate
 /// keeps its configured thresholds until the room has been heard for a while.
-const LEVEL_PRIOR_S: f64 = 2.0;
+pub(super) const LEVEL_PRIOR_S: f64 = 2.0;
 
 /// Lowest scale of the gate's thresholds: the gate never opens on a quarter of its setting.
 const MIN_ROOM_SCALE: f64 = 0.25;
@@ -28,7 +28,8 @@ pub struct RoomLevel {
     cells: Vec<f64>,
     /// Weight of all cells.
     total: f64,
-    /// The gate's scale this level sets (see [`Harmonic::room_scale`]), as of the last frame.
+    /// The gate's scale this level sets, as of its last observation (kept, not read from the
+    /// cells, since every label reads it every frame).
     scale: f64,
 }
 
@@ -47,6 +48,17 @@ impl RoomLevel {
         }
         1.0
     }
+
+    /// The scale of the gate's thresholds in this room: its level over the reference, between
+    /// a quarter and 1 (1 without the room calibration), as of its last observation.
+    pub fn scale(&self) -> f64 {
+        self.scale
+    }
+}
+
+/// The cell of [`RoomLevel`]'s histogram that holds dominance `d`.
+fn level_cell(d: f64) -> usize {
+    ((d.clamp(0.0, 1.0) * LEVEL_CELLS as f64) as usize).min(LEVEL_CELLS - 1)
 }
 
 /// A label's voiced segment as the activity hold follows it.
@@ -64,7 +76,7 @@ impl Harmonic {
     /// Folds this frame's direct-path `dominance` of a label (none: no measurement, the
     /// smoothed value holds) into its smoothed `activity` and returns the factor, in [0, 1],
     /// its estimated voicing is scaled by (1 with the gate off), with the gate's thresholds
-    /// times `scale` (the room's, [`Harmonic::room_scale`]).
+    /// times `scale` (the room's, [`RoomLevel::scale`]).
     pub fn activity_gate(&self, activity: &mut f64, dominance: Option<f64>, scale: f64) -> f64 {
         if let Some(d) = dominance.filter(|d| d.is_finite())
             && self.activity.is_some()
@@ -91,48 +103,32 @@ impl Harmonic {
 
     /// A new room level for one microphone group: only the prior at the reference level.
     pub fn room_level(&self) -> RoomLevel {
-        let mut cells = vec![0.0; LEVEL_CELLS];
-        let prior = LEVEL_PRIOR_S * self.frames_per_s;
-        if let Some(reference) = self.room_reference {
-            let c = ((reference * LEVEL_CELLS as f64) as usize).min(LEVEL_CELLS - 1);
-            cells[c] = prior;
-        }
-        RoomLevel {
-            cells,
-            total: if self.room_reference.is_some() {
-                prior
-            } else {
-                0.0
-            },
+        let mut level = RoomLevel {
+            cells: vec![0.0; LEVEL_CELLS],
+            total: 0.0,
             scale: 1.0,
+        };
+        if let Some(reference) = self.room_reference {
+            level.cells[level_cell(reference)] = self.room_prior;
+            level.total = self.room_prior;
         }
+        level
     }
 
     /// Folds this frame's `strongest` smoothed dominance among a group's labels into the
     /// group's `level` (nothing without the room calibration).
     pub fn observe_room(&self, level: &mut RoomLevel, strongest: f64) {
-        if self.room_reference.is_none() || !strongest.is_finite() {
+        let Some(reference) = self.room_reference else {
+            return;
+        };
+        if !strongest.is_finite() {
             return;
         }
         let f = self.room_forgetting;
         level.cells.iter_mut().for_each(|w| *w *= f);
-        let c = ((strongest.clamp(0.0, 1.0) * LEVEL_CELLS as f64) as usize).min(LEVEL_CELLS - 1);
-        level.cells[c] += 1.0;
+        level.cells[level_cell(strongest)] += 1.0;
         level.total = f * level.total + 1.0;
-        if let Some(reference) = self.room_reference {
-            level.scale = (level.level() / reference).clamp(MIN_ROOM_SCALE, 1.0);
-        }
-    }
-
-    /// The scale of the gate's thresholds in a room at `level`: its level over the reference,
-    /// between a quarter and 1 (1 without the room calibration), as of its last
-    /// observation.
-    pub fn room_scale(&self, level: &RoomLevel) -> f64 {
-        if self.room_reference.is_some() {
-            level.scale
-        } else {
-            1.0
-        }
+        level.scale = (level.level() / reference).clamp(MIN_ROOM_SCALE, 1.0);
     }
 
     /// How much a label counts as a competitor where another label reads its F0, in [0, 1],
@@ -210,13 +206,13 @@ mod tests {
         let h = harmonic();
         // New: the prior at the reference (0.25) keeps the thresholds as set.
         let mut level = h.room_level();
-        assert_eq!(h.room_scale(&level), 1.0);
+        assert_eq!(level.scale(), 1.0);
         // A far, reverberant room: talkers dominate a tenth of the bins at best. After 10 s
         // (one memory) most of the weight is the room's.
         for i in 0..313 {
             h.observe_room(&mut level, if i % 4 == 0 { 0.0 } else { 0.1 });
         }
-        let scale = h.room_scale(&level);
+        let scale = level.scale();
         assert!((scale - 0.42).abs() < 0.03, "{scale}");
         // Its gate opens where a dry room's would stay half shut (ramp 0.015..0.12 as set).
         assert!(h.gate_of(0.06, scale) > 0.95);
@@ -227,12 +223,12 @@ mod tests {
         for _ in 0..2000 {
             h.observe_room(&mut level, 0.5);
         }
-        assert_eq!(h.room_scale(&level), 1.0);
+        assert_eq!(level.scale(), 1.0);
         // A room where nobody ever dominates scales down to a quarter, not to nothing.
         for _ in 0..2000 {
             h.observe_room(&mut level, 0.0);
         }
-        assert_eq!(h.room_scale(&level), 0.25);
+        assert_eq!(level.scale(), 0.25);
         // Non-finite readings are ignored, and a non-finite scale keeps the thresholds.
         let before = level.clone();
         h.observe_room(&mut level, f64::NAN);
@@ -251,7 +247,7 @@ mod tests {
         for _ in 0..1000 {
             h.observe_room(&mut level, 0.01);
         }
-        assert_eq!(h.room_scale(&level), 1.0);
+        assert_eq!(level.scale(), 1.0);
     }
 
     #[test]

@@ -137,8 +137,8 @@ pub struct Harmonic {
     room_reference: Option<f64>,
     /// Forgetting per frame of the room level.
     room_forgetting: f64,
-    /// Analysis frames per second.
-    frames_per_s: f64,
+    /// Weight (frames) of a new room level's prior at the reference.
+    room_prior: f64,
     /// Largest |ln| change of F0 per frame that continues a held voiced segment (0: no hold).
     hold_log_step: f64,
     /// Frames a segment may be held with the gate closed.
@@ -195,7 +195,7 @@ impl Harmonic {
             room_reference: (cfg.activity_gate && cfg.activity_room_level > 0.0)
                 .then_some(cfg.activity_room_level),
             room_forgetting: (-1.0 / (cfg.activity_room_memory_s * frames_per_s).max(1e-9)).exp(),
-            frames_per_s,
+            room_prior: activity::LEVEL_PRIOR_S * frames_per_s,
             hold_log_step: cfg.activity_hold.ln_1p(),
             hold_max_frames: (cfg.activity_hold_max_s * frames_per_s).round() as usize,
             hold_start_frames: if cfg.activity_smoothing > 0.0 {

@@ -74,7 +74,7 @@ impl Separator {
             && self.post.enabled();
         w.presence.clear();
         w.presence.extend(self.streams.iter().map(|s| {
-            let scale = room_scale(&self.levels, &self.harmonic, s.group);
+            let scale = room_scale(&self.levels, s.group);
             let gate = gated.then(|| self.harmonic.gate_of(s.activity, scale));
             target_presence(s.presence, gate)
         }));

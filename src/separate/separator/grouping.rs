@@ -5,7 +5,7 @@
 use super::Separator;
 use super::bins::least_resolved;
 use crate::separate::KnownPitch;
-use crate::separate::harmonic::{Harmonic, Pitch, RoomLevel};
+use crate::separate::harmonic::{Pitch, RoomLevel};
 use crate::separate::stream::Stream;
 
 impl Separator {
@@ -33,7 +33,7 @@ impl Separator {
             .whitening(|k| y[k * ch + rf].norm_sqr(), self.k_lo, top, &mut w.level);
         w.audibility.clear();
         w.audibility.extend(self.streams.iter().map(|s| {
-            let scale = room_scale(&self.levels, &self.harmonic, s.group);
+            let scale = room_scale(&self.levels, s.group);
             self.harmonic.audibility(s.activity, s.comb_voicing, scale)
         }));
         for i in 0..n {
@@ -74,7 +74,7 @@ impl Separator {
                 .iter()
                 .filter(|s| s.group == g)
                 .map(|s| s.activity)
-                .fold(None, |m: Option<f64>, a| Some(m.map_or(a, |m| m.max(a))));
+                .reduce(f64::max);
             if let Some(a) = strongest {
                 self.harmonic.observe_room(level, a);
             }
@@ -188,7 +188,7 @@ impl Separator {
             return Pitch::default();
         }
         self.load_spectrum(i, to_ref, top);
-        let scale = room_scale(&self.levels, &self.harmonic, self.streams[i].group);
+        let scale = room_scale(&self.levels, self.streams[i].group);
         let w = &mut self.work;
         let s = &mut self.streams[i];
         // The gate's smoothing runs whether or not the pitch is known, so its state does not
@@ -257,10 +257,8 @@ impl Separator {
 }
 
 /// The activity gate's scale on microphone group `g` (1 without a room level there).
-pub(super) fn room_scale(levels: &[RoomLevel], harmonic: &Harmonic, g: usize) -> f64 {
-    levels
-        .get(g)
-        .map_or(1.0, |level| harmonic.room_scale(level))
+pub(super) fn room_scale(levels: &[RoomLevel], g: usize) -> f64 {
+    levels.get(g).map_or(1.0, RoomLevel::scale)
 }
 
 /// A stream's memory at a bin counts against the strongest stream's memory there plus this
