@@ -9,6 +9,8 @@ mod bad_input;
 mod clutter;
 #[path = "track/crossing.rs"]
 mod crossing;
+#[path = "track/gait.rs"]
+mod gait;
 #[path = "track/labels.rs"]
 mod labels;
 #[path = "track/paper_room.rs"]

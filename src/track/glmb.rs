@@ -10,8 +10,10 @@ use super::clutter;
 use super::config::{ClutterConfig, ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::Transition;
+use super::gait::Gait;
 use super::gaussian::Gaussian;
 use super::joint_update::{Entry, JointUpdate, Posterior, StepModel};
+use super::modes::ModeModel;
 use super::modes::Modes;
 use super::motion::{MotionModel, position_of, velocity_of};
 use super::scan::{SensorScan, StepClock, collect};
@@ -28,6 +30,9 @@ const CLAMP_MARGIN_M: f64 = 0.5;
 pub struct GlmbTracker<const N: usize> {
     cfg: TrackerConfig,
     motion: MotionModel<N>,
+    /// The motion of a walking track (`MotionConfig::walking_beta_per_s`); None for a model
+    /// without a velocity decay.
+    walking_motion: Option<MotionModel<N>>,
     sensors: Vec<Sensor<N>>,
     modes: Modes,
     region: Option<Aabb>,
@@ -102,6 +107,12 @@ impl<const N: usize> GlmbTracker<N> {
         let (sensors, modes) = compile_sensors(&sensors, cfg)?;
         Ok(Self {
             cfg: cfg.clone(),
+            walking_motion: matches!(motion, MotionModel::Langevin { .. }).then(|| {
+                motion.with_decay(
+                    cfg.motion.walking_beta_per_s,
+                    cfg.motion.walking_sigma_m_per_s,
+                )
+            }),
             motion,
             sensors,
             modes,
@@ -184,6 +195,25 @@ impl<const N: usize> GlmbTracker<N> {
         (entry_w, r_u, labels)
     }
 
+    /// The step's gait model, when the settings ask for one and the motion has a decay.
+    fn gait(&self, dt: f64) -> Option<Gait<N>> {
+        let m = &self.cfg.motion;
+        let walking = self.walking_motion.as_ref().filter(|_| m.gait)?;
+        let transition = |model: &MotionModel<N>| {
+            let (f, q) = model.transition(dt);
+            Transition::new(f, q)
+        };
+        // A new track walks as often as tracks do in the long run.
+        let initial = m.mean_walk_s / (m.mean_walk_s + m.mean_stand_s);
+        let chain = ModeModel::new(m.mean_walk_s, m.mean_stand_s, initial);
+        Some(Gait::new(
+            [transition(&self.motion), transition(walking)],
+            chain,
+            dt,
+            m.gait_camera_memory_s,
+        ))
+    }
+
     fn estimate_of(&self, entry: &Entry<N>, info: &LabelInfo) -> TrackEstimate {
         let existence = info.existence.clamp(0.0, 1.0);
         TrackEstimate {
@@ -260,6 +290,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
         let (k, dt) = self.clock.advance(input, &mut self.stats);
         let scans = collect(input, &self.sensors, &mut self.stats);
         let (f, q) = self.motion.transition(dt);
+        let gait = self.gait(dt);
         let mut births = self.fixed_births.clone();
         let mut birth_modes = vec![self.modes.initial(); births.len()];
         for b in self.pending.drain(..) {
@@ -270,6 +301,7 @@ impl<const N: usize> Tracker for GlmbTracker<N> {
             k,
             dt,
             transition: Transition::new(f, q),
+            gait,
             modes: &self.modes,
             survival: self.cfg.survival_probability,
             sensors: &self.sensors,

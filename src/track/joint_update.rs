@@ -12,67 +12,27 @@ use rand::Rng;
 use super::birth::BirthTerm;
 use super::config::{CameraConfig, GlmbConfig, UkfConfig};
 use super::filter::{Gain, Prepared, Transition, prepare, update};
+use super::gait::{self, Gait, merge};
 use super::gaussian::{Gaussian, log_add, log_sum_exp};
 use super::gibbs::{DEAD, Proposal, Sampler};
 use super::modes::{Modes, mode_outcome};
 use super::motion::position_of;
 use super::occlusion::occludes;
+pub(crate) use super::posterior::{Entry, Posterior};
 use super::scan::SensorScan;
 use super::sensor::Sensor;
 use super::slice_set::SliceSet;
 use crate::geometry::{Aabb, Vec3};
 use crate::label::Label;
 
-/// One track density of the posterior: a label with one association history.
-#[derive(Debug, Clone)]
-pub(crate) struct Entry<const N: usize> {
-    pub label: Label,
-    pub density: Gaussian<N>,
-    /// Whether the last update associated an audio measurement that sounds now (see
-    /// [`super::Scan::sounding`]); `speaking` is its probability.
-    pub audio: bool,
-    /// Probability of "on" of each detectability mode (voice, faces; see `modes`).
-    pub modes: Vec<f64>,
-    /// (scan, measurement) pairs used by the last update.
-    pub assoc: Vec<(u16, u16)>,
-}
-
-/// A GLMB density: weighted hypotheses over shared track entries, sorted by decreasing weight.
-#[derive(Debug, Clone)]
-pub(crate) struct Posterior<const N: usize> {
-    pub entries: Vec<Entry<N>>,
-    /// (log weight, start, len) of each hypothesis in `ids`.
-    pub hyps: Vec<(f64, u32, u32)>,
-    pub ids: Vec<u32>,
-}
-
-impl<const N: usize> Posterior<N> {
-    /// The density with no track (certainly).
-    pub fn empty() -> Self {
-        Self {
-            entries: Vec::new(),
-            hyps: vec![(0.0, 0, 0)],
-            ids: Vec::new(),
-        }
-    }
-
-    /// Entry indices of hypothesis `h`.
-    pub fn tracks(&self, h: usize) -> &[u32] {
-        let (_, s, l) = self.hyps[h];
-        &self.ids[s as usize..(s + l) as usize]
-    }
-
-    /// Normalised weight of hypothesis `h`.
-    pub fn weight(&self, h: usize) -> f64 {
-        self.hyps[h].0.exp()
-    }
-}
-
 /// Everything one joint update needs besides the prior.
 pub(crate) struct StepModel<'a, const N: usize> {
     pub k: u64,
     pub dt: f64,
     pub transition: Transition<N>,
+    /// The two-mode motion (standing / walking), when the settings ask for it; it replaces
+    /// `transition` for surviving tracks.
+    pub gait: Option<Gait<N>>,
     pub modes: &'a Modes,
     pub survival: f64,
     pub sensors: &'a [Sensor<N>],
@@ -95,6 +55,10 @@ struct Candidate<const N: usize> {
     pred: Gaussian<N>,
     modes: Vec<f64>,
     existence: f64,
+    /// The parent entry's `unseen_s` at the step's end (infinite for a birth).
+    unseen_s: f64,
+    /// Probability of walking, predicted over the step once `ready`.
+    walking: f64,
     ready: bool,
 }
 
@@ -119,6 +83,11 @@ pub(crate) struct JointUpdate<const N: usize> {
     children: SliceSet<u32>,
     child_logw: Vec<f64>,
     new_entries: Vec<Option<Entry<N>>>,
+    /// The candidate of each new entry.
+    new_cands: Vec<u32>,
+    /// Per candidate, the standing and walking modes' own predictions when it has a gait:
+    /// they weigh the gait at the update. Apart from the candidates, which stay small.
+    gait_preds: Vec<Option<[Gaussian<N>; 2]>>,
     new_terms: Vec<f64>,
     local: Vec<u32>,
     gamma: Vec<u16>,
@@ -188,7 +157,7 @@ impl<const N: usize> JointUpdate<N> {
                 self.score(prior.hyps[h].0, m);
             }
         }
-        self.finish(m.glmb)
+        self.finish(m)
     }
 
     fn start(&mut self, prior: &Posterior<N>, m: &StepModel<N>) {
@@ -204,6 +173,8 @@ impl<const N: usize> JointUpdate<N> {
                     .cloned()
                     .unwrap_or_else(|| m.modes.initial()),
                 existence: birth.existence,
+                unseen_s: f64::INFINITY,
+                walking: m.gait.as_ref().map_or(0.0, Gait::initial),
                 ready: false,
             });
         }
@@ -213,10 +184,14 @@ impl<const N: usize> JointUpdate<N> {
                 pred: e.density.clone(),
                 modes: m.modes.predict(&e.modes, m.dt),
                 existence: m.survival,
+                unseen_s: e.unseen_s + m.dt.max(0.0),
+                walking: e.walking,
                 ready: false,
             });
         }
         let n = self.cands.len();
+        self.gait_preds.clear();
+        self.gait_preds.resize(n, None);
         self.pd.clear();
         self.pd.resize(n * c, 0.0);
         self.log_pd.clear();
@@ -233,6 +208,7 @@ impl<const N: usize> JointUpdate<N> {
         self.children.clear();
         self.child_logw.clear();
         self.new_entries.clear();
+        self.new_cands.clear();
         self.new_terms.clear();
     }
 
@@ -242,10 +218,8 @@ impl<const N: usize> JointUpdate<N> {
             return;
         }
         let births = m.births.len();
-        if c >= births
-            && let Some(p) = m.transition.predict(&prior.entries[c - births].density)
-        {
-            self.cands[c].pred = p;
+        if c >= births {
+            self.predict(c, &prior.entries[c - births], m);
         }
         let cand = &self.cands[c];
         self.proposal.set_existence(c, cand.existence);
@@ -291,6 +265,31 @@ impl<const N: usize> JointUpdate<N> {
         self.cands[c].ready = true;
     }
 
+    /// Predicts survivor `c` from its parent entry, with its gait when the model has one.
+    fn predict(&mut self, c: usize, parent: &Entry<N>, m: &StepModel<N>) {
+        let cand = &mut self.cands[c];
+        // Only a track a camera saw lately has a gait (`gait_camera_memory_s`).
+        match m.gait.as_ref().filter(|g| g.applies(parent.unseen_s)) {
+            Some(gait) => {
+                let modes = match &parent.gait {
+                    Some(g) => [&g[0], &g[1]],
+                    None => [&parent.density, &parent.density],
+                };
+                if let Some(p) = gait.predict(modes, parent.walking) {
+                    cand.pred = p.merged;
+                    cand.walking = p.walking;
+                    self.gait_preds[c] = Some(p.modes);
+                }
+            }
+            None => {
+                if let Some(p) = m.transition.predict(&parent.density) {
+                    cand.pred = p;
+                }
+                cand.walking = 0.0;
+            }
+        }
+    }
+
     /// Exact weight of the association map in `self.gamma`; adds the child hypothesis.
     fn score(&mut self, parent_logw: f64, m: &StepModel<N>) {
         let sc = m.scans.len();
@@ -319,6 +318,7 @@ impl<const N: usize> JointUpdate<N> {
                 if new {
                     let (entry, term) = self.child_entry(c, m);
                     self.new_entries.push(Some(entry));
+                    self.new_cands.push(c as u32);
                     self.new_terms.push(term);
                 }
                 (id as u32, self.new_terms[id])
@@ -356,6 +356,7 @@ impl<const N: usize> JointUpdate<N> {
         let sc = m.scans.len();
         let mut term = self.proposal.log_alive(c);
         let mut audio = false;
+        let mut seen = false;
         let mut assoc = Vec::new();
         // Outcomes of mode-following sensors are scored jointly with their mode (sequentially,
         // which is exact for sensors independent given the modes).
@@ -377,6 +378,7 @@ impl<const N: usize> JointUpdate<N> {
             if j != 0 {
                 let sounding = m.scans[s].sounding.get(j as usize - 1).copied();
                 audio |= sensor.audio && sounding.unwrap_or(true);
+                seen |= !sensor.audio;
                 assoc.push((s as u16, j as u16 - 1));
             }
         }
@@ -411,8 +413,39 @@ impl<const N: usize> JointUpdate<N> {
             audio,
             modes,
             assoc,
+            unseen_s: if seen { 0.0 } else { cand.unseen_s },
+            // The gait's update waits for `finish`: most children are pruned.
+            walking: cand.walking,
+            gait: None,
         };
         (entry, term)
+    }
+
+    /// Updates kept child `entry` of candidate `c` under the candidate's gait: each mode's
+    /// prediction by the entry's measurements, the modes weighed by their likelihoods, and
+    /// the entry's density their merge (the interacting multiple model's estimate).
+    fn update_gait(&self, entry: &mut Entry<N>, c: usize, m: &StepModel<N>) {
+        let cand = &self.cands[c];
+        let Some(modes) = &self.gait_preds[c] else {
+            return;
+        };
+        let measured = entry.assoc.iter().map(|&(s, j)| {
+            let scan = &m.scans[s as usize];
+            (&m.sensors[scan.sensor], &scan.z[j as usize])
+        });
+        let Some((walking, modes)) =
+            gait::update(modes, cand.walking, measured, m.ukf, m.clamp.as_ref())
+        else {
+            return;
+        };
+        if let Some(mut density) = merge(1.0 - walking, &modes[0], walking, &modes[1]) {
+            if let Some(region) = &m.clamp {
+                clamp_position(&mut density.mean, region);
+            }
+            entry.density = density;
+        }
+        entry.walking = walking;
+        entry.gait = Some(Box::new(modes));
     }
 
     /// Update of the prediction of candidate `c` by scan `s` with the cached statistics.
@@ -519,7 +552,8 @@ impl<const N: usize> JointUpdate<N> {
     }
 
     /// Normalises, prunes, caps and compacts the children into the new posterior.
-    fn finish(&mut self, cfg: &GlmbConfig) -> Posterior<N> {
+    fn finish(&mut self, m: &StepModel<N>) -> Posterior<N> {
+        let cfg = m.glmb;
         let lse = log_sum_exp(self.child_logw.iter().copied());
         if !lse.is_finite() {
             return Posterior::empty();
@@ -547,7 +581,8 @@ impl<const N: usize> JointUpdate<N> {
                 let e = e as usize;
                 if remap[e] == u32::MAX {
                     remap[e] = out.entries.len() as u32;
-                    if let Some(entry) = self.new_entries[e].take() {
+                    if let Some(mut entry) = self.new_entries[e].take() {
+                        self.update_gait(&mut entry, self.new_cands[e] as usize, m);
                         out.entries.push(entry);
                     }
                 }

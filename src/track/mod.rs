@@ -17,6 +17,9 @@
 //! - `motion`: Langevin (spec 003 eq. 14-15, F = [[I, dt I], [0, e^{-beta dt} I]]) and constant
 //!   velocity over a `[position; velocity]` state of any dimension N (N = 6 in the room, N = 4
 //!   in Vo's planar benchmark).
+//! - `gait`: each track of a Langevin model stands or walks, an interacting multiple model of
+//!   two velocity decays (standing: `beta_per_s`, walking: `walking_beta_per_s`) whose mode
+//!   probability the measurements update, for tracks a camera saw lately.
 //! - `sensor`: the measurement models ([`SensorModel`], [`sensors_from_layout`]): audio 3-D
 //!   candidates, audio azimuth (and elevation) from an array centroid with the azimuth wrapped
 //!   in the innovation, the cone angle of a linear array, camera pixels through
@@ -77,7 +80,9 @@
 //!   (mean talk and pause 2 s): a speaker who pauses 2 s while another talks keeps the label.
 //! - P_S is per step (the paper's 0.999 at 128 ms steps). The Langevin model keeps velocity for
 //!   about 0.5 s (beta 2/s instead of the paper's 10/s) with velocity noise 0.27 m/s instead of 1.2 (see
-//!   `MotionConfig`).
+//!   `MotionConfig`) while a track stands, and for about 2 s (0.5/s, velocity noise 0.5 m/s)
+//!   while it walks: a walker the camera loses for 1.5 s and one array hears is followed
+//!   within 0.41 m at the gap's end against 0.60 m with one decay, a stander as closely.
 //! - Measurement-driven births start with r_B = 0.01 (the paper's fixed births: 0.005).
 
 mod birth;
@@ -85,6 +90,7 @@ mod clutter;
 mod config;
 mod estimator;
 mod filter;
+mod gait;
 mod gaussian;
 mod gibbs;
 mod glmb;
@@ -93,6 +99,7 @@ mod joint_update;
 mod modes;
 mod motion;
 mod occlusion;
+mod posterior;
 mod scan;
 pub mod scenarios;
 mod sensor;

@@ -33,6 +33,11 @@ impl ModeModel {
         }
     }
 
+    /// The probability that a new track is "on".
+    pub fn initial(&self) -> f64 {
+        self.initial
+    }
+
     /// The probability of "on" that one step of `dt` seconds leaves unchanged (at `dt` 0, where
     /// every one is, the start probability).
     pub fn stationary(&self, dt: f64) -> f64 {
@@ -45,7 +50,7 @@ impl ModeModel {
     }
 
     /// Probabilities that "on" ends and that "off" ends within `dt` seconds.
-    fn switches(&self, dt: f64) -> (f64, f64) {
+    pub fn switches(&self, dt: f64) -> (f64, f64) {
         let dt = dt.max(0.0);
         (
             -(-self.stop_per_s * dt).exp_m1(),

@@ -80,6 +80,20 @@ impl<const N: usize> MotionModel<N> {
         }
     }
 
+    /// The same model with velocity decay rate `beta_per_s` and velocity noise factors
+    /// `sigma_m_per_s` (a Langevin model only; the constant-velocity model has neither and is
+    /// returned as it is).
+    pub fn with_decay(&self, beta_per_s: f64, sigma_m_per_s: [f64; 3]) -> Self {
+        match self {
+            Self::Langevin { nu_m_per_s, .. } => Self::Langevin {
+                beta_per_s,
+                nu_m_per_s: *nu_m_per_s,
+                sigma_m_per_s,
+            },
+            other => other.clone(),
+        }
+    }
+
     /// Transition matrix F and process noise Q for a step of `dt` seconds (dt <= 0 gives I, 0).
     pub fn transition(&self, dt: f64) -> (SMatrix<f64, N, N>, SMatrix<f64, N, N>) {
         let d = Self::AXES;

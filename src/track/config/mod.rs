@@ -6,8 +6,10 @@
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+mod motion;
 mod validate;
 
+pub use motion::{MotionConfig, MotionKind};
 pub use validate::ConfigError;
 
 /// Which multi-object tracker runs.
@@ -30,17 +32,6 @@ pub enum FilterKind {
     Ekf,
     /// Unscented Kalman filter (scaled sigma points, parameters in `ukf`).
     Ukf,
-}
-
-/// Dynamic model of a track.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum MotionKind {
-    /// Langevin model of the paper (spec 003 eq. 14-15): mean-reverting velocity.
-    #[default]
-    Langevin,
-    /// Nearly constant velocity (piecewise-constant white acceleration).
-    ConstantVelocity,
 }
 
 /// The whole tracker configuration.
@@ -106,49 +97,6 @@ impl Default for TrackerConfig {
             speaking_smoothing: 0.5,
             clamp_to_region: true,
             gmphd: GmphdConfig::default(),
-        }
-    }
-}
-
-/// Motion model parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(deny_unknown_fields, default)]
-pub struct MotionConfig {
-    /// `langevin` (default, the paper's model) or `constant_velocity`.
-    pub model: MotionKind,
-    /// Langevin: velocity decay rate beta (1/s; paper: 10). 2/s keeps a walker's velocity for
-    /// about half a second, enough to carry two tracks through a crossing more often than the
-    /// paper's 0.1 s (see `sigma_m_per_s` for the measurements). Re-measured later with the
-    /// same `sigma_m_per_s`, 1 and 0.5 against 2, full pipeline, 3-D MOTA: uca8 three talkers
-    /// seeds 1-18 95.0 and 95.5 against 93.5 %, recorded speech seeds 1-12 94.0 and 94.7
-    /// against 92.7 % (SI-SDRi +0.07 to +0.16 dB), paper-linear6 seeds 1-48 98.1 and 98.2
-    /// against 97.9 % but HOTA 80.1 and 79.4 against 80.5 %; audio-only uca8 36.0 and 32.5
-    /// against 40.9 %.
-    pub beta_per_s: f64,
-    /// Langevin: steady-state RMS velocity nu (m/s; paper: 1).
-    pub nu_m_per_s: f64,
-    /// Langevin: per-axis velocity noise sigma (x, y, z; paper: [1.2, 1.2, 0.2], for people
-    /// walking about). Over times beyond 1 / beta the position spreads by 2 nu^2 sigma^2 / beta
-    /// m^2/s: the paper's values let an unobserved track spread by 0.54 m in a second, wide
-    /// enough for a silent talker whose face is turned away to be pulled onto a reverberant
-    /// image of another talker 30 degrees off, and to let the unobservable range of a
-    /// direction-only track drift. With beta = 2/s, [0.27, 0.27, 0.05] spreads by 0.27 m in a
-    /// second and still follows walkers at 0.5-0.7 m/s; it measured better than the paper's
-    /// values on `paper-linear6`, `uca8` (2 and 3 talkers) and `two-arrays`, seeds 1-10
-    /// (OSPA(2), MOTA, label counts and switches, audio-visual and audio-only).
-    pub sigma_m_per_s: [f64; 3],
-    /// Constant velocity: per-axis white-acceleration standard deviation (m/s^2).
-    pub accel_std_m_per_s2: [f64; 3],
-}
-
-impl Default for MotionConfig {
-    fn default() -> Self {
-        Self {
-            model: MotionKind::Langevin,
-            beta_per_s: 2.0,
-            nu_m_per_s: 1.0,
-            sigma_m_per_s: [0.27, 0.27, 0.05],
-            accel_std_m_per_s2: [2.0, 2.0, 0.5],
         }
     }
 }

@@ -59,6 +59,13 @@ impl TrackerConfig {
         let m = &self.motion;
         positive(m.beta_per_s, "motion.beta_per_s")?;
         positive(m.nu_m_per_s, "motion.nu_m_per_s")?;
+        positive(m.walking_beta_per_s, "motion.walking_beta_per_s")?;
+        for (i, s) in m.walking_sigma_m_per_s.iter().enumerate() {
+            non_negative(*s, &format!("motion.walking_sigma_m_per_s[{i}]"))?;
+        }
+        non_negative(m.gait_camera_memory_s, "motion.gait_camera_memory_s")?;
+        positive(m.mean_walk_s, "motion.mean_walk_s")?;
+        positive(m.mean_stand_s, "motion.mean_stand_s")?;
         for (i, s) in m.sigma_m_per_s.iter().enumerate() {
             non_negative(*s, &format!("motion.sigma_m_per_s[{i}]"))?;
         }

@@ -1,0 +1,242 @@
+//! A track's gait: standing or walking, two motion modes that a two-state Markov chain switches.
+//!
+//! One Langevin velocity decay cannot serve both. A fast decay (`beta_per_s`) keeps a
+//! standing talker's track still against noisy measurements, but lets a walker's track lag
+//! him and forget his velocity as soon as a camera loses him; a slow one
+//! (`walking_beta_per_s`) carries a walker through such gaps and overshoots a talker who
+//! stops. Each track entry carries an interacting multiple model (Blom & Bar-Shalom): the
+//! probability that it walks and its density conditioned on each mode. A step mixes the two
+//! mode densities by the chain's switching, predicts each with its own decay, and hands the
+//! GLMB their moment-matched merge to score associations with; the update then updates each
+//! mode's density by the associated measurements and weighs the modes by their likelihoods,
+//! so a track whose measurements keep running ahead of the standing prediction comes to
+//! walk, and one that stops comes to stand again within a few steps.
+
+use nalgebra::Vector3;
+
+use super::config::UkfConfig;
+use super::filter::{Transition, update as kalman_update};
+use super::gaussian::Gaussian;
+use super::joint_update::clamp_position;
+use super::modes::ModeModel;
+use super::sensor::Sensor;
+use crate::geometry::Aabb;
+
+/// One step's gait model: the two modes' transitions for the step's dt and the chain.
+#[derive(Debug, Clone)]
+pub(crate) struct Gait<const N: usize> {
+    standing: Transition<N>,
+    walking: Transition<N>,
+    /// "On" is walking.
+    chain: ModeModel,
+    dt: f64,
+    /// How long after its last camera detection a track keeps its gait (s).
+    camera_memory_s: f64,
+}
+
+/// A track's prediction under its gait.
+#[derive(Debug, Clone)]
+pub(crate) struct GaitPrediction<const N: usize> {
+    /// The two modes' predictions merged: what the GLMB scores associations with.
+    pub merged: Gaussian<N>,
+    /// Each mode's own prediction (standing, walking).
+    pub modes: [Gaussian<N>; 2],
+    /// Probability of walking after the step, before its measurements.
+    pub walking: f64,
+}
+
+impl<const N: usize> Gait<N> {
+    /// The gait of a step of `dt` seconds with the standing and walking modes' transitions,
+    /// for tracks a camera saw within the last `camera_memory_s`.
+    pub fn new(
+        [standing, walking]: [Transition<N>; 2],
+        chain: ModeModel,
+        dt: f64,
+        camera_memory_s: f64,
+    ) -> Self {
+        Self {
+            standing,
+            walking,
+            chain,
+            dt,
+            camera_memory_s,
+        }
+    }
+
+    /// Whether a track last seen by a camera `unseen_s` seconds before the step (infinite
+    /// when never) has a gait; one that has none stands.
+    pub fn applies(&self, unseen_s: f64) -> bool {
+        unseen_s < self.camera_memory_s
+    }
+
+    /// The probability that a new track walks.
+    pub fn initial(&self) -> f64 {
+        self.chain.initial()
+    }
+
+    /// Predicts a track that walks with probability `walking`, with density `modes[0]` if it
+    /// stands and `modes[1]` if it walks. None when a prediction is not finite.
+    pub fn predict(&self, modes: [&Gaussian<N>; 2], walking: f64) -> Option<GaitPrediction<N>> {
+        let (stop, start) = self.chain.switches(self.dt);
+        let w = self.chain.predict(walking, self.dt);
+        // Mixing: each mode's density after the switch is the mixture of the modes it can
+        // come from, weighed by how likely it came from each.
+        let stand_from_walk = if w < 1.0 {
+            walking * stop / (1.0 - w)
+        } else {
+            0.0
+        };
+        let walk_from_stand = if w > 0.0 {
+            (1.0 - walking) * start / w
+        } else {
+            0.0
+        };
+        let stand0 = merge(1.0 - stand_from_walk, modes[0], stand_from_walk, modes[1])?;
+        let walk0 = merge(walk_from_stand, modes[0], 1.0 - walk_from_stand, modes[1])?;
+        let standing = self.standing.predict(&stand0)?;
+        let moving = self.walking.predict(&walk0)?;
+        let merged = merge(1.0 - w, &standing, w, &moving)?;
+        Some(GaitPrediction {
+            merged,
+            modes: [standing, moving],
+            walking: w,
+        })
+    }
+}
+
+/// Updates each mode's prediction (`modes`: standing, walking) by the `measured` sensors'
+/// measurements in turn and weighs the modes by their likelihoods: the probability of walking
+/// after the update (`walking` before it) and the modes' posteriors, their means clamped into
+/// `clamp`. None when an update fails.
+pub(crate) fn update<'a, const N: usize>(
+    modes: &[Gaussian<N>; 2],
+    walking: f64,
+    measured: impl Iterator<Item = (&'a Sensor<N>, &'a Vector3<f64>)> + Clone,
+    ukf: &UkfConfig,
+    clamp: Option<&Aabb>,
+) -> Option<(f64, [Gaussian<N>; 2])> {
+    let mut ll = [0.0; 2];
+    let mut out = modes.clone();
+    for (mode, density) in out.iter_mut().enumerate() {
+        for (sensor, z) in measured.clone() {
+            let (next, l) = kalman_update(sensor, density, z, ukf)?;
+            *density = next;
+            ll[mode] += l;
+        }
+        if let Some(region) = clamp {
+            clamp_position(&mut density.mean, region);
+        }
+    }
+    Some((walking_after(walking, ll[0], ll[1]), out))
+}
+
+/// The probability of walking after an update whose measurements have log likelihoods
+/// `log_standing` and `log_walking` under the two modes' predictions; `walking` before it.
+pub(crate) fn walking_after(walking: f64, log_standing: f64, log_walking: f64) -> f64 {
+    if !(log_standing.is_finite() && log_walking.is_finite()) {
+        return walking;
+    }
+    // w L_w / (w L_w + (1 - w) L_s), in logs so that far measurements do not underflow.
+    let d = ((1.0 - walking).ln() + log_standing) - (walking.ln() + log_walking);
+    let p = 1.0 / (1.0 + d.exp());
+    if p.is_finite() {
+        p.clamp(0.0, 1.0)
+    } else {
+        walking
+    }
+}
+
+/// The moment-matched Gaussian of the mixture wa N(a) + wb N(b) (weights summing to 1).
+pub(crate) fn merge<const N: usize>(
+    wa: f64,
+    a: &Gaussian<N>,
+    wb: f64,
+    b: &Gaussian<N>,
+) -> Option<Gaussian<N>> {
+    let mean = a.mean * wa + b.mean * wb;
+    let da = a.mean - mean;
+    let db = b.mean - mean;
+    let cov = (a.cov + da * da.transpose()) * wa + (b.cov + db * db.transpose()) * wb;
+    let cov = (cov + cov.transpose()) * 0.5;
+    (mean.iter().all(|v| v.is_finite()) && cov.iter().all(|v| v.is_finite()))
+        .then_some(Gaussian { mean, cov })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Vec3;
+    use crate::track::motion::{MotionModel, state_of};
+    use nalgebra::SMatrix;
+
+    fn langevin(beta_per_s: f64) -> MotionModel<6> {
+        MotionModel::Langevin {
+            beta_per_s,
+            nu_m_per_s: 1.0,
+            sigma_m_per_s: [0.27, 0.27, 0.05],
+        }
+    }
+
+    fn gait(dt: f64) -> Gait<6> {
+        let t = |m: MotionModel<6>| {
+            let (f, q) = m.transition(dt);
+            Transition::new(f, q)
+        };
+        let chain = ModeModel::new(3.0, 10.0, 0.2);
+        Gait::new([t(langevin(2.0)), t(langevin(0.5))], chain, dt, 5.0)
+    }
+
+    fn walker() -> Gaussian<6> {
+        Gaussian {
+            mean: state_of(&Vec3::new(1.0, 2.0, 1.6), &Vec3::new(0.6, 0.0, 0.0)),
+            cov: SMatrix::<f64, 6, 6>::identity() * 0.01,
+        }
+    }
+
+    #[test]
+    fn the_merged_prediction_lies_between_the_modes_and_holds_their_spread() {
+        let g = gait(0.128);
+        let p = g.predict([&walker(), &walker()], 0.5).unwrap();
+        let (vs, vw, vm) = (p.modes[0].mean[3], p.modes[1].mean[3], p.merged.mean[3]);
+        // Standing forgets the velocity faster than walking.
+        assert!(vs < vw, "{vs} {vw}");
+        let w = p.walking;
+        assert!((vm - ((1.0 - w) * vs + w * vw)).abs() < 1e-12);
+        // The merged variance exceeds each mode's weighted variance by their means' spread.
+        let spread = w * (1.0 - w) * (vw - vs) * (vw - vs);
+        let weighted = (1.0 - w) * p.modes[0].cov[(3, 3)] + w * p.modes[1].cov[(3, 3)];
+        assert!((p.merged.cov[(3, 3)] - weighted - spread).abs() < 1e-12);
+        // A track certain to stand predicts as the standing mode would, up to the chain's
+        // switch within the step.
+        let still = g.predict([&walker(), &walker()], 0.0).unwrap();
+        assert!(still.walking < 0.02);
+        assert!((still.merged.mean[3] - vs).abs() < 0.02 * (vw - vs) + 1e-12);
+    }
+
+    #[test]
+    fn only_a_track_a_camera_saw_lately_has_a_gait() {
+        let g = gait(0.128);
+        assert!(g.applies(0.0));
+        assert!(g.applies(4.9));
+        assert!(!g.applies(5.0));
+        // Never seen: an audio-only track, whose range no measurement fixes, stands.
+        assert!(!g.applies(f64::INFINITY));
+    }
+
+    #[test]
+    fn measurements_that_run_ahead_make_a_track_walk_and_a_stop_makes_it_stand() {
+        // Measurement log likelihoods as a walking track's mode predictions would give them.
+        assert!(walking_after(0.2, -5.0, -1.0) > 0.9);
+        assert!(walking_after(0.8, -1.0, -5.0) < 0.1);
+        // Equal likelihoods leave the prior; non-finite ones are ignored.
+        assert!((walking_after(0.3, -2.0, -2.0) - 0.3).abs() < 1e-12);
+        assert_eq!(walking_after(0.3, f64::NEG_INFINITY, -2.0), 0.3);
+        assert_eq!(walking_after(0.3, -2.0, f64::NAN), 0.3);
+        // Far measurements do not underflow to NaN.
+        let p = walking_after(0.5, -1e4, -1.0);
+        assert!(p.is_finite() && p > 0.99);
+        // A certain mode stays certain.
+        assert_eq!(walking_after(0.0, -1e4, -1.0), 0.0);
+        assert_eq!(walking_after(1.0, -1.0, -1e4), 1.0);
+    }
+}
