@@ -31,7 +31,8 @@ pub(crate) struct StepModel<'a, const N: usize> {
     pub dt: f64,
     pub transition: Transition<N>,
     /// The two-mode motion (standing / walking), when the settings ask for it; it replaces
-    /// `transition` for surviving tracks.
+    /// `transition` for surviving tracks that a camera (or any sensor that is not audio) saw
+    /// within `gait_camera_memory_s`.
     pub gait: Option<Gait<N>>,
     pub modes: &'a Modes,
     pub survival: f64,

@@ -16,8 +16,8 @@ pub(crate) struct Entry<const N: usize> {
     pub modes: Vec<f64>,
     /// (scan, measurement) pairs used by the last update.
     pub assoc: Vec<(u16, u16)>,
-    /// Time (s) since an update of this entry's history took a camera measurement; infinite
-    /// when none did.
+    /// Time (s) since an update of this entry's history took a measurement of a camera (or
+    /// of any sensor that is not audio); infinite when none did.
     pub unseen_s: f64,
     /// Probability that the track walks (`gait`).
     pub walking: f64,

@@ -4,7 +4,7 @@
 use avsep::geometry::Vec3;
 use avsep::track::{StepInput, TrackerConfig};
 
-use crate::room::{DIR_A, DT, RoomSim, nearest, room_tracker};
+use crate::room::{DIR_A, DIR_B, DT, RoomSim, nearest, room_tracker};
 
 /// Mean 3-D error of the track nearest a talker at `at(t)` over `judged` (s), averaged over
 /// seeds 1-6. The camera sees him except in `hidden` (he turns away); he talks throughout and
@@ -59,6 +59,7 @@ fn a_walker_the_camera_loses_is_followed_by_his_gait() {
     let off = error(&without_gait(), walker, hidden, judged);
     println!("walker unseen for 1.5 s, error at its end: gait {on:.3} m, without {off:.3} m");
     assert!(on < 0.8 * off, "gait {on} against {off}");
+    assert!(on < 0.6, "gait {on}");
 }
 
 /// A talker who stands: the gait costs his track no accuracy.
@@ -70,4 +71,31 @@ fn a_standing_talker_stays_put_with_a_gait() {
     let off = error(&without_gait(), stander, (0.0, 0.0), judged);
     println!("standing talker: error gait {on:.3} m, without {off:.3} m");
     assert!(on < 1.1 * off + 0.01, "gait {on} against {off}");
+    assert!(on < 0.1, "gait {on}");
+}
+
+/// Heard only, by two arrays: a track no camera saw has no gait, and the tracker's output is
+/// the same with the gait on or off, to the bit.
+#[test]
+fn a_track_no_camera_saw_moves_as_without_a_gait() {
+    let (a, b) = (Vec3::new(0.1, 2.5, 1.0), Vec3::new(5.9, 4.9, 1.0));
+    let run = |cfg: &TrackerConfig| {
+        let mut tracker = room_tracker(cfg, 3);
+        let mut sim = RoomSim::new(4);
+        let mut out = Vec::new();
+        for k in 0..60u64 {
+            let t = k as f64 * DT;
+            let p = [Vec3::new(1.5 + 0.5 * t, 3.0, 1.6)];
+            let scans = vec![
+                sim.direction_scan(DIR_A, a, &p, 1.0),
+                sim.direction_scan(DIR_B, b, &p, 1.0),
+            ];
+            let est = tracker.step(&StepInput { k, t, scans });
+            out.extend(est.iter().map(|e| (e.label, e.position, e.velocity)));
+        }
+        out
+    };
+    let on = run(&TrackerConfig::default());
+    assert!(!on.is_empty(), "the talker was not tracked");
+    assert_eq!(on, run(&without_gait()));
 }

@@ -20,10 +20,10 @@ pub enum MotionKind {
 pub struct MotionConfig {
     /// `langevin` (default, the paper's model) or `constant_velocity`.
     pub model: MotionKind,
-    /// Langevin: velocity decay rate beta (1/s; paper: 10), of a standing track with `gait`.
-    /// 2/s keeps a walker's velocity for
-    /// about half a second, enough to carry two tracks through a crossing more often than the
-    /// paper's 0.1 s (see `sigma_m_per_s` for the measurements). Re-measured later with the
+    /// Langevin: velocity decay rate beta (1/s; paper: 10); with `gait`, a standing track's.
+    /// 2/s keeps a velocity for about half a second, enough to carry two tracks through a
+    /// crossing more often than the paper's 0.1 s (see `sigma_m_per_s` for the measurements),
+    /// measured before `gait` gave walkers a slower decay. Re-measured later with the
     /// same `sigma_m_per_s`, 1 and 0.5 against 2, full pipeline, 3-D MOTA: uca8 three talkers
     /// seeds 1-18 95.0 and 95.5 against 93.5 %, recorded speech seeds 1-12 94.0 and 94.7
     /// against 92.7 % (SI-SDRi +0.07 to +0.16 dB), paper-linear6 seeds 1-48 98.1 and 98.2
@@ -63,10 +63,11 @@ pub struct MotionConfig {
     /// HOTA against 58.8 / 43.0, `paper-linear6` seeds 1-24 HOTA 82.0 against 82.5 %.
     pub walking_beta_per_s: f64,
     /// Langevin with `gait`: per-axis velocity noise factors of a walking track (m/s). Its
-    /// steady-state speed (times `nu_m_per_s`) must exceed a standing track's: the walking
-    /// mode's prediction is then the wider one, so a track that stands still comes to stand.
-    /// With the standing mode's [0.27, 0.27, 0.05] both modes predicted nearly alike and
-    /// standing tracks walked. 0.4 and 0.6: `two-arrays` seeds 1-12 59.1 / 42.9 and 58.7 /
+    /// steady-state speed (times `nu_m_per_s`) should exceed a standing track's. With the
+    /// standing mode's [0.27, 0.27, 0.05] the walking mode, whose velocity persists, predicted
+    /// a still talker better than the standing one, whose velocity is redrawn every half
+    /// second: standing tracks read as walking (0.75 on `paper-linear6` seed 2) and overshot
+    /// talkers who stopped (HOTA 79.8 against 80.5 % on seeds 1-48). 0.4 and 0.6: `two-arrays` seeds 1-12 59.1 / 42.9 and 58.7 /
     /// 42.8 % MOTA / HOTA, `paper-linear6` seeds 1-24 HOTA 82.3 and 82.6 %.
     pub walking_sigma_m_per_s: [f64; 3],
     /// With `gait`: how long (s) after its last camera detection (or any sensor's that is not
