@@ -21,8 +21,8 @@ use nalgebra::Vector3;
 use super::config::UkfConfig;
 use super::filter::{Transition, update as kalman_update};
 use super::gaussian::Gaussian;
-use super::joint_update::clamp_position;
 use super::modes::ModeModel;
+use super::motion::clamp_position;
 use super::sensor::Sensor;
 use crate::geometry::Aabb;
 
@@ -108,17 +108,29 @@ impl<const N: usize> Gait<N> {
     }
 }
 
+/// A track's gait after an update.
+#[derive(Debug, Clone)]
+pub(crate) struct GaitUpdate<const N: usize> {
+    /// Probability of walking.
+    pub walking: f64,
+    /// The density conditioned on standing and on walking.
+    pub modes: [Gaussian<N>; 2],
+    /// Their moment-matched merge, the interacting multiple model's estimate (None when not
+    /// finite).
+    pub merged: Option<Gaussian<N>>,
+}
+
 /// Updates each mode's prediction (`modes`: standing, walking) by the `measured` sensors'
-/// measurements in turn and weighs the modes by their likelihoods: the probability of walking
-/// after the update (`walking` before it) and the modes' posteriors, their means clamped into
-/// `clamp`. None when an update fails.
+/// measurements in turn and weighs the modes by their likelihoods (`walking` the probability
+/// of walking before the update); every mean is clamped into `clamp`. None when an update
+/// fails.
 pub(crate) fn update<'a, const N: usize>(
     modes: &[Gaussian<N>; 2],
     walking: f64,
     measured: impl Iterator<Item = (&'a Sensor<N>, &'a Vector3<f64>)> + Clone,
     ukf: &UkfConfig,
     clamp: Option<&Aabb>,
-) -> Option<(f64, [Gaussian<N>; 2])> {
+) -> Option<GaitUpdate<N>> {
     let mut ll = [0.0; 2];
     let mut out = modes.clone();
     for (mode, density) in out.iter_mut().enumerate() {
@@ -131,7 +143,16 @@ pub(crate) fn update<'a, const N: usize>(
             clamp_position(&mut density.mean, region);
         }
     }
-    Some((walking_after(walking, ll[0], ll[1]), out))
+    let walking = walking_after(walking, ll[0], ll[1]);
+    let mut merged = merge(1.0 - walking, &out[0], walking, &out[1]);
+    if let (Some(g), Some(region)) = (&mut merged, clamp) {
+        clamp_position(&mut g.mean, region);
+    }
+    Some(GaitUpdate {
+        walking,
+        modes: out,
+        merged,
+    })
 }
 
 /// The probability of walking after an update whose measurements have log likelihoods
@@ -281,14 +302,15 @@ mod tests {
         for k in 1..=steps {
             let p = g.predict([&state.1[0], &state.1[1]], state.0).unwrap();
             let z = at(k as f64 * dt);
-            state = update(
+            let u = update(
                 &p.modes,
                 p.walking,
                 std::iter::once((&sensor, &z)),
                 &ukf,
                 None,
-            )
-            .unwrap();
+            );
+            let u = u.unwrap();
+            state = (u.walking, u.modes);
         }
         state
     }
@@ -324,27 +346,19 @@ mod tests {
         let sensor = position_sensor();
         let ukf = UkfConfig::default();
         let z = position_of(&p.merged.mean) + Vec3::new(0.4, 0.0, 0.0);
-        let (_, modes) = update(
-            &p.modes,
-            p.walking,
-            std::iter::once((&sensor, &z)),
-            &ukf,
-            None,
-        )
-        .unwrap();
-        for (post, prior) in modes.iter().zip(&p.modes) {
+        let once = || std::iter::once((&sensor, &z));
+        let u = update(&p.modes, p.walking, once(), &ukf, None).unwrap();
+        for (post, prior) in u.modes.iter().zip(&p.modes) {
             assert!(post.mean[0] > prior.mean[0] + 0.1);
         }
+        // The estimate is the modes' merge.
+        let (w, merged) = (u.walking, u.merged.unwrap());
+        let expected = (1.0 - w) * u.modes[0].mean[0] + w * u.modes[1].mean[0];
+        assert!((merged.mean[0] - expected).abs() < 1e-12);
         let region = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.05, 3.0, 2.0)).unwrap();
-        let (_, clamped) = update(
-            &p.modes,
-            p.walking,
-            std::iter::once((&sensor, &z)),
-            &ukf,
-            Some(&region),
-        )
-        .unwrap();
-        assert!(clamped.iter().all(|g| g.mean[0] <= 1.05));
+        let clamped = update(&p.modes, p.walking, once(), &ukf, Some(&region)).unwrap();
+        assert!(clamped.modes.iter().all(|g| g.mean[0] <= 1.05));
+        assert!(clamped.merged.unwrap().mean[0] <= 1.05);
     }
 
     #[test]

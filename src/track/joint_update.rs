@@ -12,11 +12,11 @@ use rand::Rng;
 use super::birth::BirthTerm;
 use super::config::{CameraConfig, GlmbConfig, UkfConfig};
 use super::filter::{Gain, Prepared, Transition, prepare, update};
-use super::gait::{self, Gait, merge};
+use super::gait::{self, Gait};
 use super::gaussian::{Gaussian, log_add, log_sum_exp};
 use super::gibbs::{DEAD, Proposal, Sampler};
 use super::modes::{Modes, mode_outcome};
-use super::motion::position_of;
+use super::motion::{clamp_position, position_of};
 use super::occlusion::occludes;
 pub(crate) use super::posterior::{Entry, Posterior};
 use super::scan::SensorScan;
@@ -434,19 +434,14 @@ impl<const N: usize> JointUpdate<N> {
             let scan = &m.scans[s as usize];
             (&m.sensors[scan.sensor], &scan.z[j as usize])
         });
-        let Some((walking, modes)) =
-            gait::update(modes, cand.walking, measured, m.ukf, m.clamp.as_ref())
-        else {
+        let Some(u) = gait::update(modes, cand.walking, measured, m.ukf, m.clamp.as_ref()) else {
             return;
         };
-        if let Some(mut density) = merge(1.0 - walking, &modes[0], walking, &modes[1]) {
-            if let Some(region) = &m.clamp {
-                clamp_position(&mut density.mean, region);
-            }
+        if let Some(density) = u.merged {
             entry.density = density;
         }
-        entry.walking = walking;
-        entry.gait = Some(Box::new(modes));
+        entry.walking = u.walking;
+        entry.gait = Some(Box::new(u.modes));
     }
 
     /// Update of the prediction of candidate `c` by scan `s` with the cached statistics.
@@ -596,13 +591,5 @@ impl<const N: usize> JointUpdate<N> {
             return Posterior::empty();
         }
         out
-    }
-}
-
-/// Clamps the position part of a state into `region`.
-pub(crate) fn clamp_position<const N: usize>(x: &mut nalgebra::SVector<f64, N>, region: &Aabb) {
-    let p = region.clamp(&position_of(x));
-    for i in 0..(N / 2).min(3) {
-        x[i] = p[i];
     }
 }

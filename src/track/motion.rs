@@ -4,7 +4,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::config::{ConfigError, MotionConfig, MotionKind};
-use crate::geometry::Vec3;
+use crate::geometry::{Aabb, Vec3};
 
 /// A linear-Gaussian motion model whose F and Q depend on the step length dt.
 #[derive(Debug, Clone, PartialEq)]
@@ -140,6 +140,14 @@ pub fn position_of<const N: usize>(x: &SVector<f64, N>) -> Vec3 {
         p[i] = x[i];
     }
     p
+}
+
+/// Clamps the position part of a state into `region`.
+pub(crate) fn clamp_position<const N: usize>(x: &mut SVector<f64, N>, region: &Aabb) {
+    let p = region.clamp(&position_of(x));
+    for i in 0..(N / 2).min(3) {
+        x[i] = p[i];
+    }
 }
 
 /// Velocity part of a state as a 3-D vector (missing axes are 0).
