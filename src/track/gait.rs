@@ -26,10 +26,10 @@ use super::motion::clamp_position;
 use super::sensor::Sensor;
 use crate::geometry::Aabb;
 
-/// One step's gait model: the two modes' transitions for the step's dt and the chain.
+/// One step's gait model: the walking mode's transition for the step's dt and the chain. The
+/// standing mode's transition is the step's single-mode one, which the caller holds anyway.
 #[derive(Debug, Clone)]
 pub(crate) struct Gait<const N: usize> {
-    standing: Transition<N>,
     walking: Transition<N>,
     /// "On" is walking.
     chain: ModeModel,
@@ -50,16 +50,10 @@ pub(crate) struct GaitPrediction<const N: usize> {
 }
 
 impl<const N: usize> Gait<N> {
-    /// The gait of a step of `dt` seconds with the standing and walking modes' transitions,
-    /// for tracks a camera saw within the last `camera_memory_s`.
-    pub fn new(
-        [standing, walking]: [Transition<N>; 2],
-        chain: ModeModel,
-        dt: f64,
-        camera_memory_s: f64,
-    ) -> Self {
+    /// The gait of a step of `dt` seconds with the walking mode's transition, for tracks a
+    /// camera saw within the last `camera_memory_s`.
+    pub fn new(walking: Transition<N>, chain: ModeModel, dt: f64, camera_memory_s: f64) -> Self {
         Self {
-            standing,
             walking,
             chain,
             dt,
@@ -79,8 +73,14 @@ impl<const N: usize> Gait<N> {
     }
 
     /// Predicts a track that walks with probability `walking`, with density `modes[0]` if it
-    /// stands and `modes[1]` if it walks. None when a prediction is not finite.
-    pub fn predict(&self, modes: [&Gaussian<N>; 2], walking: f64) -> Option<GaitPrediction<N>> {
+    /// stands (moved by `standing`) and `modes[1]` if it walks. None when a prediction is not
+    /// finite.
+    pub fn predict(
+        &self,
+        standing: &Transition<N>,
+        modes: [&Gaussian<N>; 2],
+        walking: f64,
+    ) -> Option<GaitPrediction<N>> {
         let (stop, start) = self.chain.switches(self.dt);
         let w = self.chain.predict(walking, self.dt);
         // Mixing: each mode's density after the switch is the mixture of the modes it can
@@ -97,7 +97,7 @@ impl<const N: usize> Gait<N> {
         };
         let stand0 = merge(1.0 - stand_from_walk, modes[0], stand_from_walk, modes[1])?;
         let walk0 = merge(walk_from_stand, modes[0], 1.0 - walk_from_stand, modes[1])?;
-        let standing = self.standing.predict(&stand0)?;
+        let standing = standing.predict(&stand0)?;
         let moving = self.walking.predict(&walk0)?;
         let merged = merge(1.0 - w, &standing, w, &moving)?;
         Some(GaitPrediction {
@@ -204,13 +204,32 @@ mod tests {
         }
     }
 
-    fn gait(dt: f64) -> Gait<6> {
+    /// The tests' gait with its standing transition, as the joint update holds them.
+    struct Stepped {
+        gait: Gait<6>,
+        standing: Transition<6>,
+    }
+
+    impl Stepped {
+        fn predict(&self, modes: [&Gaussian<6>; 2], w: f64) -> Option<GaitPrediction<6>> {
+            self.gait.predict(&self.standing, modes, w)
+        }
+
+        fn applies(&self, unseen_s: f64) -> bool {
+            self.gait.applies(unseen_s)
+        }
+    }
+
+    fn gait(dt: f64) -> Stepped {
         let t = |m: MotionModel<6>| {
             let (f, q) = m.transition(dt);
             Transition::new(f, q)
         };
         let chain = ModeModel::new(3.0, 10.0, 0.2);
-        Gait::new([t(langevin(2.0)), t(langevin(0.5))], chain, dt, 5.0)
+        Stepped {
+            gait: Gait::new(t(langevin(0.5)), chain, dt, 5.0),
+            standing: t(langevin(2.0)),
+        }
     }
 
     fn walker() -> Gaussian<6> {

@@ -30,9 +30,9 @@ const CLAMP_MARGIN_M: f64 = 0.5;
 pub struct GlmbTracker<const N: usize> {
     cfg: TrackerConfig,
     motion: MotionModel<N>,
-    /// The motion of a walking track (`MotionConfig::walking_beta_per_s`); None for a model
-    /// without a velocity decay.
-    walking_motion: Option<MotionModel<N>>,
+    /// The walking mode's motion (`MotionConfig::walking_beta_per_s`) and the gait's chain;
+    /// None without a gait (turned off, or a motion model without a velocity decay).
+    gait: Option<(MotionModel<N>, ModeModel)>,
     sensors: Vec<Sensor<N>>,
     modes: Modes,
     region: Option<Aabb>,
@@ -68,6 +68,25 @@ pub(crate) fn compile_sensors<const N: usize>(
         .collect::<Result<Vec<_>, _>>()?;
     let modes = Modes::assign(&mut sensors, &cfg.voice, &cfg.face);
     Ok((sensors, modes))
+}
+
+/// The walking mode's motion and the gait's chain, when the settings ask for a gait and the
+/// motion has a velocity decay.
+fn gait_of<const N: usize>(
+    cfg: &TrackerConfig,
+    motion: &MotionModel<N>,
+) -> Option<(MotionModel<N>, ModeModel)> {
+    let m = &cfg.motion;
+    if !(m.gait && matches!(motion, MotionModel::Langevin { .. })) {
+        return None;
+    }
+    let walking = motion.with_decay(m.walking_beta_per_s, m.walking_sigma_m_per_s);
+    // A new track walks as often as tracks do in the long run.
+    let initial = m.mean_walk_s / (m.mean_walk_s + m.mean_stand_s);
+    Some((
+        walking,
+        ModeModel::new(m.mean_walk_s, m.mean_stand_s, initial),
+    ))
 }
 
 /// The region grown by the clamp margin, when clamping is configured.
@@ -107,12 +126,7 @@ impl<const N: usize> GlmbTracker<N> {
         let (sensors, modes) = compile_sensors(&sensors, cfg)?;
         Ok(Self {
             cfg: cfg.clone(),
-            walking_motion: matches!(motion, MotionModel::Langevin { .. }).then(|| {
-                motion.with_decay(
-                    cfg.motion.walking_beta_per_s,
-                    cfg.motion.walking_sigma_m_per_s,
-                )
-            }),
+            gait: gait_of(cfg, &motion),
             motion,
             sensors,
             modes,
@@ -195,23 +209,12 @@ impl<const N: usize> GlmbTracker<N> {
         (entry_w, r_u, labels)
     }
 
-    /// The step's gait model, when the settings ask for one and the motion has a decay.
+    /// The step's gait model, when the tracker has a gait.
     fn gait(&self, dt: f64) -> Option<Gait<N>> {
-        let m = &self.cfg.motion;
-        let walking = self.walking_motion.as_ref().filter(|_| m.gait)?;
-        let transition = |model: &MotionModel<N>| {
-            let (f, q) = model.transition(dt);
-            Transition::new(f, q)
-        };
-        // A new track walks as often as tracks do in the long run.
-        let initial = m.mean_walk_s / (m.mean_walk_s + m.mean_stand_s);
-        let chain = ModeModel::new(m.mean_walk_s, m.mean_stand_s, initial);
-        Some(Gait::new(
-            [transition(&self.motion), transition(walking)],
-            chain,
-            dt,
-            m.gait_camera_memory_s,
-        ))
+        let (walking, chain) = self.gait.as_ref()?;
+        let (f, q) = walking.transition(dt);
+        let memory_s = self.cfg.motion.gait_camera_memory_s;
+        Some(Gait::new(Transition::new(f, q), *chain, dt, memory_s))
     }
 
     fn estimate_of(&self, entry: &Entry<N>, info: &LabelInfo) -> TrackEstimate {

@@ -276,7 +276,7 @@ impl<const N: usize> JointUpdate<N> {
                     Some(g) => [&g[0], &g[1]],
                     None => [&parent.density, &parent.density],
                 };
-                if let Some(p) = gait.predict(modes, parent.walking) {
+                if let Some(p) = gait.predict(&m.transition, modes, parent.walking) {
                     cand.pred = p.merged;
                     cand.walking = p.walking;
                     self.gait_preds[c] = Some(p.modes);
