@@ -23,12 +23,16 @@ pub struct MotionConfig {
     /// Langevin: velocity decay rate beta (1/s; paper: 10); with `gait`, a standing track's.
     /// 2/s keeps a velocity for about half a second, enough to carry two tracks through a
     /// crossing more often than the paper's 0.1 s (see `sigma_m_per_s` for the measurements),
-    /// measured before `gait` gave walkers a slower decay. Re-measured later with the
-    /// same `sigma_m_per_s`, 1 and 0.5 against 2, full pipeline, 3-D MOTA: uca8 three talkers
-    /// seeds 1-18 95.0 and 95.5 against 93.5 %, recorded speech seeds 1-12 94.0 and 94.7
-    /// against 92.7 % (SI-SDRi +0.07 to +0.16 dB), paper-linear6 seeds 1-48 98.1 and 98.2
-    /// against 97.9 % but HOTA 80.1 and 79.4 against 80.5 %; audio-only uca8 36.0 and 32.5
-    /// against 40.9 % (measured without `gait`, which now gives walkers the slower decay).
+    /// measured before `gait` gave walkers a slower decay. Re-measured with the gait (the
+    /// default), 1 against 2, full pipeline, 3-D MOTA / HOTA: `two-arrays` seeds 1-12 59.6 /
+    /// 44.0 against 58.8 / 43.0 %, seeds 13-24 66.8 / 48.4 against 65.5 / 47.2 %, recorded
+    /// speech seeds 1-12 60.1 / 45.0 against 58.8 / 43.9 %; uca8 three talkers seeds 1-18
+    /// 95.1 / 82.8 against 94.8 / 83.0 %, 19-30 96.9 / 83.8 against 96.6 / 84.2 %;
+    /// paper-linear6 seeds 1-48 98.1 / 80.1 against 98.0 / 80.5 %, 49-72 98.3 / 78.9 against
+    /// 98.4 / 79.2 %; SI-SDRi within 0.2 dB everywhere. Audio-only uca8, whose tracks have no
+    /// gait: 36.0 against 40.9 % MOTA (without the gait 0.5 gave 32.5 %). The faster decay
+    /// stays: the slower one overshoots standing talkers (HOTA) and lets direction-only tracks
+    /// drift.
     pub beta_per_s: f64,
     /// Langevin: steady-state RMS velocity nu (m/s; paper: 1).
     pub nu_m_per_s: f64,
