@@ -56,11 +56,10 @@ pub struct MotionConfig {
     /// (default) against `false`: `two-arrays` 58.8 / 43.0 %, seeds 13-24 65.5 / 47.2 against
     /// 61.2 / 43.1 %, recorded speech seeds 1-6 61.3 / 41.2 against 57.6 / 39.1 %, 7-12 56.2 /
     /// 46.5 against 57.6 / 44.7 % (one scene's unseen walker got a second label); uca8 three
-    /// talkers seeds 1-18
-    /// 94.8 / 83.0 against 93.5 / 82.4 %, recorded 1-12 93.2 / 81.2 against 92.7 / 81.0 %;
-    /// `paper-linear6` 98.0 / 80.5 against 97.9 / 80.5 %. SI-SDRi moves within the scenes'
-    /// spread: `two-arrays` +4.17 against +4.21 dB, seeds 13-24 +5.33 against +5.26, uca8
-    /// +9.42 against +9.37, `paper-linear6` +7.88 against +7.87.
+    /// talkers seeds 1-18 94.8 / 83.0 against 93.5 / 82.4 %, recorded 1-12 93.2 / 81.2 against
+    /// 92.7 / 81.0 %; `paper-linear6` 98.0 / 80.5 against 97.9 / 80.5 %. SI-SDRi moves within
+    /// the scenes' spread: `two-arrays` +4.17 against +4.21 dB, seeds 13-24 +5.33 against
+    /// +5.26, uca8 +9.42 against +9.37, `paper-linear6` +7.88 against +7.87.
     pub gait: bool,
     /// Langevin with `gait`: velocity decay rate (1/s) of a walking track: it keeps a
     /// walker's velocity for about 2 s. 0.25: `two-arrays` seeds 1-12 58.7 / 43.1 % MOTA /
@@ -71,8 +70,9 @@ pub struct MotionConfig {
     /// standing mode's [0.27, 0.27, 0.05] the walking mode, whose velocity persists, predicted
     /// a still talker better than the standing one, whose velocity is redrawn every half
     /// second: standing tracks read as walking (0.75 on `paper-linear6` seed 2) and overshot
-    /// talkers who stopped (HOTA 79.8 against 80.5 % on seeds 1-48). 0.4 and 0.6: `two-arrays` seeds 1-12 59.1 / 42.9 and 58.7 /
-    /// 42.8 % MOTA / HOTA, `paper-linear6` seeds 1-24 HOTA 82.3 and 82.6 %.
+    /// talkers who stopped (HOTA 79.8 against 80.5 % on seeds 1-48). 0.4 and 0.6:
+    /// `two-arrays` seeds 1-12 59.1 / 42.9 and 58.7 / 42.8 % MOTA / HOTA, `paper-linear6`
+    /// seeds 1-24 HOTA 82.3 and 82.6 %.
     pub walking_sigma_m_per_s: [f64; 3],
     /// With `gait`: how long (s) after its last camera detection (or any sensor's that is not
     /// audio) a track keeps its gait; a track no camera saw within it stands. From audio
