@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 
 use super::config::UkfConfig;
 use super::filter::{Transition, update as kalman_update};
-use super::gaussian::Gaussian;
+use super::gaussian::{Gaussian, mixture_moments};
 use super::modes::ModeModel;
 use super::motion::clamp_position;
 use super::sensor::Sensor;
@@ -178,10 +178,7 @@ pub(crate) fn merge<const N: usize>(
     wb: f64,
     b: &Gaussian<N>,
 ) -> Option<Gaussian<N>> {
-    let mean = a.mean * wa + b.mean * wb;
-    let da = a.mean - mean;
-    let db = b.mean - mean;
-    let cov = (a.cov + da * da.transpose()) * wa + (b.cov + db * db.transpose()) * wb;
+    let Gaussian { mean, cov } = mixture_moments([(wa, a), (wb, b)].into_iter());
     let cov = (cov + cov.transpose()) * 0.5;
     (mean.iter().all(|v| v.is_finite()) && cov.iter().all(|v| v.is_finite()))
         .then_some(Gaussian { mean, cov })

@@ -73,6 +73,24 @@ fn cholesky_pivots_above<const N: usize>(p: &SMatrix<f64, N, N>, floor: f64) -> 
     true
 }
 
+/// The moment-matched Gaussian of the mixture sum_i w_i N(g_i) of `parts` (w_i, g_i), the
+/// weights summing to 1. Its covariance is returned as summed: callers symmetrise or
+/// [`condition`] it as their use needs.
+pub fn mixture_moments<'a, const N: usize>(
+    parts: impl Iterator<Item = (f64, &'a Gaussian<N>)> + Clone,
+) -> Gaussian<N> {
+    let mut mean = SVector::<f64, N>::zeros();
+    for (w, g) in parts.clone() {
+        mean += g.mean * w;
+    }
+    let mut cov = SMatrix::<f64, N, N>::zeros();
+    for (w, g) in parts {
+        let d = g.mean - mean;
+        cov += (g.cov + d * d.transpose()) * w;
+    }
+    Gaussian { mean, cov }
+}
+
 /// log(sum(exp(x))) computed without overflow; -inf for an empty or all -inf input.
 pub fn log_sum_exp(xs: impl Iterator<Item = f64> + Clone) -> f64 {
     let m = xs.clone().fold(f64::NEG_INFINITY, f64::max);
@@ -216,6 +234,21 @@ pub fn chi_square_quantile(p: f64, dof: usize) -> f64 {
 mod tests {
     use super::*;
     use nalgebra::Matrix3;
+
+    #[test]
+    fn a_mixtures_moments_are_its_mean_and_its_spread_about_it() {
+        let g = |m: f64, v: f64| Gaussian::<1> {
+            mean: SVector::from([m]),
+            cov: SMatrix::from([[v]]),
+        };
+        let (a, b) = (g(0.0, 1.0), g(4.0, 2.0));
+        let m = mixture_moments([(0.25, &a), (0.75, &b)].into_iter());
+        assert!((m.mean[0] - 3.0).abs() < 1e-12);
+        // Within: 0.25 * 1 + 0.75 * 2; between: 0.25 * 9 + 0.75 * 1.
+        assert!((m.cov[(0, 0)] - (1.75 + 3.0)).abs() < 1e-12);
+        // One component is itself.
+        assert_eq!(mixture_moments([(1.0, &b)].into_iter()), b);
+    }
 
     #[test]
     fn chi_square_quantiles_match_tables() {

@@ -18,7 +18,7 @@ use super::clutter;
 use super::config::{ClutterConfig, ConfigError, TrackerConfig};
 use super::estimator::Reporter;
 use super::filter::{Transition, prepare};
-use super::gaussian::Gaussian;
+use super::gaussian::{Gaussian, mixture_moments};
 use super::glmb::{clamp_region, compile_sensors};
 use super::modes::Modes;
 use super::motion::{MotionModel, clamp_position, position_of, velocity_of};
@@ -199,18 +199,13 @@ impl<const N: usize> GmphdTracker<N> {
                 })
                 .collect();
             let w: f64 = members.iter().map(|&i| rest[i].w).sum();
-            let mut mean = SVector::<f64, N>::zeros();
-            for &i in &members {
-                mean += rest[i].g.mean * (rest[i].w / w);
-            }
-            let mut cov = nalgebra::SMatrix::<f64, N, N>::zeros();
+            let Gaussian { mean, mut cov } =
+                mixture_moments(members.iter().map(|&i| (rest[i].w / w, &rest[i].g)));
             let mut tags: Vec<(Tag, f64)> = Vec::new();
             let mut audio = 0.0;
             for &i in &members {
                 used[i] = true;
                 let c = &rest[i];
-                let d = mean - c.g.mean;
-                cov += (c.g.cov + d * d.transpose()) * (c.w / w);
                 audio += c.audio * c.w / w;
                 for &(t, f) in &c.tags {
                     match tags.iter_mut().find(|x| x.0 == t) {
