@@ -72,10 +72,10 @@ pub struct LocalizerConfig {
     /// candidates heard in their own frame, 0.7 against 0.9, full pipeline, 3-D MOTA: uca8 three
     /// talkers seeds 1-18 95.0 against 93.5 %, recorded speech seeds 1-12 93.4 against 92.7 %
     /// (-0.10 dB SI-SDRi), paper-linear6 unchanged, audio-only uca8 36.3 against 40.9 % (see the
-    /// README's tracker limits). With the tracks' gait, 0.7 tracks walkers better still (3-D
-    /// MOTA two-arrays seeds 13-24 70.5 against 65.5 %, uca8 seeds 1-18 96.7 against 94.8 %), but
-    /// the uca8 figure above falls to 87.1 % and audio-only uca8 seeds 1-30 to 41.0 against
-    /// 44.0 %, so 0.9 stays the default.
+    /// README's tracker limits). With the tracks' gait, 0.7 tracks better still (3-D MOTA
+    /// two-arrays seeds 13-24 70.5 against 65.5 %, uca8 seeds 1-18 96.7 against 94.8 %), but the
+    /// uca8 figure above falls to 87.1 % and audio-only uca8 seeds 1-30 to 41.0 against 44.0 %,
+    /// so 0.9 stays the default.
     pub smoothing_decay: f64,
     /// GCC lags are tabulated this many times finer than one sample (band-limited interpolation).
     pub interpolation: usize,
