@@ -13,21 +13,16 @@ use avsep::dsp::{Complex, MultiSpectrum, Stft};
 use avsep::geometry::{Aabb, Layout, MicArray, Vec3, direction_from_angles};
 use avsep::localize::{Localizer, LocalizerConfig, SearchMode};
 use criterion::{Criterion, criterion_group, criterion_main};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 const FS: f64 = 16000.0;
 const FRAME: usize = 2048;
 
 /// A deterministic pseudo-random sequence in [-0.5, 0.5).
 fn noise(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-    (0..n)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        })
-        .collect()
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n).map(|_| rng.random_range(-0.5..0.5)).collect()
 }
 
 /// CPU time consumed by the calling thread so far.

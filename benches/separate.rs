@@ -10,6 +10,8 @@ use avsep::label::Label;
 use avsep::separate::harmonic::{HarmonicFit, hann_transform};
 use avsep::separate::{Separator, SeparatorConfig, Target};
 use criterion::{Criterion, criterion_group};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 fn layout() -> Layout {
     let mics = (0..8)
@@ -24,13 +26,8 @@ fn layout() -> Layout {
 
 /// Random-phase spectra (a new frame each call, so nothing is cached between frames).
 fn frames(count: usize, bins: usize) -> Vec<MultiSpectrum> {
-    let mut s = 7u64;
-    let mut rnd = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut rnd = move || rng.random_range(-0.5..0.5);
     (0..count)
         .map(|_| {
             let mut m = MultiSpectrum::zeros(8, bins);

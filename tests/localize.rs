@@ -16,6 +16,8 @@ use avsep::geometry::{
 use avsep::localize::{ArrayObservation, Localizer, LocalizerConfig, SearchMode};
 use avsep::scene::Scene;
 use avsep::scene::sim::{PresetOptions, SimConfig, simulate};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use realfft::RealFftPlanner;
 
 const FS: f64 = 16000.0;
@@ -23,15 +25,8 @@ const C: f64 = 343.0;
 
 /// A deterministic pseudo-random sequence with unit-ish variance.
 fn noise(n: usize, seed: u64) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
-    (0..n)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 3.4
-        })
-        .collect()
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    (0..n).map(|_| rng.random_range(-1.7..1.7)).collect()
 }
 
 /// Free-field recordings of `sources` at `mics`: exact fractional delays and 1/r gains.

@@ -48,20 +48,14 @@ pub(super) fn sliding_max(src: &[f64], w: usize, dst: &mut [f64], work: &mut [f6
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
 
     #[test]
     fn matches_the_brute_force_maximum_at_every_width_and_length() {
         // Lengths around multiples of the block, widths from none to wider than the sequence.
-        let mut state = 7u64;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         for n in [1usize, 2, 5, 9, 10, 11, 64, 101] {
-            let src: Vec<f64> = (0..n)
-                .map(|_| {
-                    state = state
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-                })
-                .collect();
+            let src: Vec<f64> = (0..n).map(|_| rng.random_range(-0.5..0.5)).collect();
             for w in [0usize, 1, 2, 4, 5, 13, 200] {
                 let mut dst = vec![f64::NAN; n];
                 let mut work = vec![0.0; 2 * n];

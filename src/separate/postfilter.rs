@@ -185,6 +185,7 @@ impl PostFilter {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
 
     fn pf(kind: PostFilterKind, smoothing: f64) -> PostFilter {
         PostFilter::new(
@@ -305,11 +306,10 @@ mod tests {
         let f = pf(PostFilterKind::Wiener, 0.3);
         let mut st = vec![PostState::default()];
         let mut g = vec![0.0];
-        let mut s = 1u64;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         let mut noise_gain = 0.0;
         for n in 0..300 {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
-            let ph = (s >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU;
+            let ph = rng.random_range(0.0..std::f64::consts::TAU);
             let burst = if n % 50 == 49 { 30.0 } else { 1.0 };
             f.gains(
                 &[Complex::from_polar(burst, ph)],

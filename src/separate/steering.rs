@@ -113,6 +113,7 @@ impl Steering {
 mod tests {
     use super::*;
     use crate::dsp::{FrameGeometry, StreamingStft};
+    use rand::{Rng, SeedableRng};
 
     /// Windowed-sinc fractional delay of `x` by `d` samples (non-circular).
     fn fractional_delay(x: &[f64], d: f64) -> Vec<f64> {
@@ -141,15 +142,8 @@ mod tests {
     }
 
     fn noise(n: usize, seed: u64) -> Vec<f64> {
-        let mut s = seed;
-        (0..n)
-            .map(|_| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-            })
-            .collect()
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..n).map(|_| rng.random_range(-0.5..0.5)).collect()
     }
 
     /// Simulates the direct path to each microphone in the time domain and checks the averaged

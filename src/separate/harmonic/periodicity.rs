@@ -155,7 +155,7 @@ impl Periodicity {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{FS, N, spectrum, uniform, voiced};
+    use super::super::tests::{FS, N, rng, spectrum, uniform, voiced};
     use super::*;
 
     fn reader() -> Periodicity {
@@ -167,7 +167,7 @@ mod tests {
     }
 
     fn noise(seed: u64) -> Vec<f64> {
-        let mut s = seed;
+        let mut s = rng(seed);
         (0..N).map(|_| uniform(&mut s)).collect()
     }
 

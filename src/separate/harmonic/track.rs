@@ -159,12 +159,13 @@ fn argmax(values: impl Iterator<Item = f64>) -> (usize, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{harmonic, spectrum, uniform, voiced};
+    use super::super::tests::{harmonic, rng, spectrum, uniform, voiced};
     use super::*;
+    use rand_chacha::ChaCha8Rng;
 
     /// Magnitudes of voice A at 150 Hz (amplitude 1) plus voice B at 210 Hz (amplitude `b`)
     /// plus a little noise.
-    fn frame(b: f64, seed: &mut u64) -> Vec<f64> {
+    fn frame(b: f64, seed: &mut ChaCha8Rng) -> Vec<f64> {
         let x: Vec<f64> = voiced(150.0, 1.0)
             .iter()
             .zip(voiced(210.0, b))
@@ -177,7 +178,7 @@ mod tests {
     /// track and returns the F0s, and the frame-by-frame search's F0s.
     fn read(frames: &[Option<f64>]) -> (Vec<f64>, Vec<f64>) {
         let h = harmonic();
-        let mut seed = 5;
+        let mut seed = rng(5);
         let mut track = PitchTrack::default();
         let (mut tracked, mut alone) = (Vec::new(), Vec::new());
         for b in frames {
