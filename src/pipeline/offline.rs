@@ -253,29 +253,7 @@ pub fn process_scene(
 ) -> Result<RunSummary, ProcessError> {
     let started = Instant::now();
     let seed = cfg.seed.unwrap_or(DEFAULT_OFFLINE_SEED);
-    if let Some(bounds) = opts.bounds {
-        bounds
-            .check_layout(&scene.layout)
-            .map_err(ProcessError::TooLarge)?;
-        bounds
-            .check_settings(&cfg)
-            .map_err(ProcessError::TooLarge)?;
-    }
-    let mut pipeline = Pipeline::new(scene.layout.clone(), cfg.clone(), seed)?;
-    if opts.oracle_tracks {
-        let truth = scene.truth.clone().ok_or_else(|| {
-            ProcessError::Scene(format!(
-                "{}: --oracle-tracks needs a scene with truth",
-                scene.dir.display()
-            ))
-        })?;
-        pipeline.use_oracle_tracks(truth);
-    }
-    if let Some(part) = opts.oracle_pitch {
-        pipeline.use_oracle_pitch(part).map_err(|e| {
-            ProcessError::Scene(format!("{}: --oracle-pitch: {e}", scene.dir.display()))
-        })?;
-    }
+    let mut pipeline = build_pipeline(scene, &cfg, &opts, seed)?;
     let masked = if opts.oracle_mask {
         Some(oracle_mask_streams(scene, &cfg, opts.oracle_tracks)?)
     } else {
@@ -333,6 +311,38 @@ pub fn process_scene(
     };
     write_json(&out.join(files::SUMMARY), &summary)?;
     Ok(summary)
+}
+
+/// The pipeline for `scene` with `cfg`, checked against the size bounds `opts` asks for and
+/// with the oracle inputs it names.
+fn build_pipeline(
+    scene: &Scene,
+    cfg: &PipelineConfig,
+    opts: &OfflineOptions,
+    seed: u64,
+) -> Result<Pipeline, ProcessError> {
+    if let Some(bounds) = opts.bounds {
+        bounds
+            .check_layout(&scene.layout)
+            .map_err(ProcessError::TooLarge)?;
+        bounds.check_settings(cfg).map_err(ProcessError::TooLarge)?;
+    }
+    let mut pipeline = Pipeline::new(scene.layout.clone(), cfg.clone(), seed)?;
+    if opts.oracle_tracks {
+        let truth = scene.truth.clone().ok_or_else(|| {
+            ProcessError::Scene(format!(
+                "{}: --oracle-tracks needs a scene with truth",
+                scene.dir.display()
+            ))
+        })?;
+        pipeline.use_oracle_tracks(truth);
+    }
+    if let Some(part) = opts.oracle_pitch {
+        pipeline.use_oracle_pitch(part).map_err(|e| {
+            ProcessError::Scene(format!("{}: --oracle-pitch: {e}", scene.dir.display()))
+        })?;
+    }
+    Ok(pipeline)
 }
 
 /// Each true source's stream by the ideal ratio mask on the reference microphone, under its
