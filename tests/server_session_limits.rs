@@ -2,7 +2,8 @@
 //! (`limits.idle_timeout_s`): one never fed is removed, one fed and left finishes (its results
 //! stay readable), and one with a client connected runs on however quiet it is; creations
 //! past `limits.session_creations_per_min` are refused; a session's input queue holds at most
-//! `limits.queue_bytes`; and sessions are admitted by their memory bound under
+//! `limits.queue_bytes`, and the frames waiting for its audio at most
+//! `limits.sensor_backlog_bytes`; and sessions are admitted by their memory bound under
 //! `limits.max_memory_mb`, at creation and on every change that moves the bound.
 
 mod server_support;
@@ -336,5 +337,77 @@ async fn the_input_queue_holds_at_most_queue_bytes() {
     let after = metrics().await;
     assert_eq!((after.queue_bytes, after.queue_depth), (0, 0));
     assert_eq!(after.refused.values().sum::<u64>(), 2);
+    server.stop().await;
+}
+
+/// A client that sets a long lead (`max_lead_s`) and sends camera frames far ahead of its
+/// audio holds at most `limits.sensor_backlog_bytes` of them in the session: the frames past
+/// it are refused with `backlog_full` naming the limit, and the session goes on with its
+/// audio and the frames it took.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frames_ahead_of_the_audio_hold_at_most_the_sensor_backlog() {
+    let backlog = 8 << 10;
+    let server = server_with(|l| {
+        // The backlog must hold one frame of the most boxes.
+        (l.sensor_backlog_bytes, l.max_measurements) = (backlog, 64);
+    })
+    .await;
+    let sc = scene("uca8", 1.0, 1, 7);
+    let cfg = avsep::pipeline::PipelineConfig {
+        max_lead_s: 3600.0,
+        ..settings(7)
+    };
+    let session = server.create(&sc, cfg, None).await;
+    // The scene's audio alone, and right after its first block 100 frames of 20 faces each
+    // from 0.5 s on, ahead of the audio but within the lead.
+    let mut feed: Vec<FeedItem> = scene_feed(&sc, 1024, SampleEncoding::F32)
+        .into_iter()
+        .filter(|i| matches!(i.message, FeedMessage::Audio { .. }))
+        .collect();
+    let camera = &sc.layout.cameras[0].id;
+    let boxes = vec![r#"{"x":10,"y":10,"w":20,"h":20}"#; 20].join(",");
+    let ahead = (0..100).map(|i| FeedItem {
+        due_s: 0.0,
+        message: FeedMessage::Json(format!(
+            r#"{{"type":"detections","t":{},"camera":"{camera}","boxes":[{boxes}]}}"#,
+            0.5 + 0.004 * f64::from(i)
+        )),
+    });
+    feed.splice(1..1, ahead);
+    let opts = StreamOptions::default();
+    let url = server.ws_url(&session);
+    let got = stream_feed(&url, &session.token, &feed, &opts)
+        .await
+        .unwrap();
+
+    let frame = avsep::scene::DetectionFrame {
+        t: 0.0,
+        camera: 0,
+        boxes: Vec::new(),
+    };
+    let held = size_of_val(&frame) + 20 * size_of::<avsep::scene::FaceBox>();
+    let fits = backlog / held;
+    assert!((1..100).contains(&fits), "{fits}");
+    assert_eq!(got.errors.len(), 100 - fits, "{:?}", got.errors);
+    for e in &got.errors {
+        assert_eq!(
+            (e.code.as_str(), e.field.as_deref()),
+            ("backlog_full", Some("t"))
+        );
+        assert!(
+            e.message.contains("limits.sensor_backlog_bytes"),
+            "{}",
+            e.message
+        );
+    }
+    // Every step of the scene's second ran, and the frames it took reached the tracker.
+    assert_eq!(got.tracks.len(), 8);
+    let (host, path) = (
+        server.host(),
+        format!("/v1/sessions/{}/metrics", session.id),
+    );
+    let r = http(&host, "GET", &path, Some(&session.token), None);
+    let m: SessionMetrics = r.await.unwrap().json().unwrap();
+    assert_eq!(m.refused.get("backlog_full"), Some(&((100 - fits) as u64)));
     server.stop().await;
 }

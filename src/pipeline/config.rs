@@ -89,7 +89,8 @@ pub struct PipelineConfig {
     /// How far (seconds) a camera or device frame's time may run ahead of the session's present
     /// (the audio received so far, or in a session without audio its sensors' newest time);
     /// a frame further ahead is refused with `too_early`, so a wrong clock can neither make the
-    /// session hold frames without bound nor step through hours of empty time.
+    /// session hold frames without bound nor step through hours of empty time. What the frames
+    /// ahead may hold together is the server's limit (`limits.sensor_backlog_bytes`).
     pub max_lead_s: f64,
     /// Whether separated audio is produced.
     pub separation: bool,

@@ -24,7 +24,7 @@ pub use clock::StepClock;
 pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, PipelineConfig};
 pub use events::{EventSink, PipelineEvent};
 pub use input::InputError;
-pub use sensor_queue::SensorQueue;
+pub use sensor_queue::{SensorQueue, largest_frame_bytes};
 pub use separation::{SeparationChunk, SeparationDriver, SeparationHandoff, SeparationWork};
 pub use session::{LIVE_SETTINGS, Pipeline, PipelineStats};
 pub use speaking::{SpeakingConfig, SpeakingFilter};

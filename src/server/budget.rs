@@ -1,7 +1,7 @@
 //! What one session may hold in memory at most, which the server's memory budget
 //! (`limits.max_memory_mb`) admits sessions by: its pipeline ([`crate::pipeline::footprint`])
-//! and the server's buffers around it (queued input, queued separation work, outputs waiting
-//! for stream clients, the track history).
+//! and the server's buffers around it (queued input, sensor frames waiting for their step,
+//! queued separation work, outputs waiting for stream clients, the track history).
 
 use std::mem::size_of;
 
@@ -61,6 +61,7 @@ pub fn buffers(
         0
     };
     limits.queue_bytes
+        + limits.sensor_backlog_bytes
         + separation
         + limits.output_buffer * output
         + limits.history_steps * snapshot
@@ -90,6 +91,8 @@ mod tests {
         let mut wider = c.limits.clone();
         wider.queue_bytes += 1 << 20;
         assert_eq!(parts(&wider, &c.execution, &s), base + (1 << 20));
+        wider.sensor_backlog_bytes += 1 << 20;
+        assert_eq!(parts(&wider, &c.execution, &s), base + (2 << 20));
         let inline = Execution {
             separation_thread: false,
             ..c.execution.clone()
@@ -128,7 +131,8 @@ mod tests {
         let audio = 16 + size_of::<Output>() + samples.capacity() * 4;
         let held = c.limits.history_steps * snapshot
             + c.limits.output_buffer * (16 + size_of::<Output>() + snapshot).max(audio);
-        let counted = parts(&c.limits, &inline, &s) - c.limits.queue_bytes;
+        let counted =
+            parts(&c.limits, &inline, &s) - c.limits.queue_bytes - c.limits.sensor_backlog_bytes;
         assert!(held <= counted, "{held} > {counted}");
         assert!(counted < held + (1 << 20), "{counted} against {held}");
     }

@@ -73,6 +73,12 @@ pub struct Limits {
     /// fits an empty queue. It counts in each session's memory bound; the default, 4 MiB, holds
     /// 127 audio frames of 1,024 samples on 8 channels.
     pub queue_bytes: usize,
+    /// Bytes the camera and device frames a session holds until its audio reaches their time
+    /// may take together (`max_lead_s` bounds how far ahead they may run, not how many a
+    /// client sends in that time); a frame past it is refused with `backlog_full`. At least
+    /// one frame of `max_measurements` boxes; it counts in each session's memory bound. The
+    /// default, 2 MiB, holds 10 s of a 30 frames/s camera seeing 50 faces.
+    pub sensor_backlog_bytes: usize,
     /// Output messages buffered for each stream client; a client that falls further behind
     /// skips ahead and is told how many it missed (`output_dropped`).
     pub output_buffer: usize,
@@ -106,7 +112,7 @@ pub struct Limits {
     /// Memory (MB) the running sessions may take together, at most, each counted by the bound
     /// its layout and settings give for its pipeline and the server's buffers around it, with
     /// every stream its cap allows (`memory_bound_bytes` in its info; an everyday 8-microphone
-    /// session counts about 60 MB, the largest the default limits admit about 1.65 GB). A
+    /// session counts about 62 MB, the largest the default limits admit about 1.65 GB). A
     /// creation, recalibration or settings change past it is refused with 503
     /// `memory_budget`; 0 sets no budget.
     pub max_memory_mb: usize,
@@ -149,6 +155,7 @@ impl Limits {
             ("limits.max_body_bytes", l.max_body_bytes),
             ("limits.queue_depth", l.queue_depth),
             ("limits.queue_bytes", l.queue_bytes),
+            ("limits.sensor_backlog_bytes", l.sensor_backlog_bytes),
             ("limits.output_buffer", l.output_buffer),
             ("limits.history_steps", l.history_steps),
             ("limits.max_microphones", l.max_microphones),
@@ -172,6 +179,16 @@ impl Limits {
                     "must be at least 4 x max_message_bytes ({} bytes), so that any message \
                      the size limit admits fits an empty queue",
                     4 * l.max_message_bytes
+                ),
+            ));
+        }
+        let frame = crate::pipeline::largest_frame_bytes(l.max_measurements);
+        if l.sensor_backlog_bytes < frame {
+            return Err(ConfigError::new(
+                "limits.sensor_backlog_bytes",
+                format!(
+                    "must hold one frame of max_measurements boxes ({frame} bytes), or such a \
+                     frame could never wait for its step"
                 ),
             ));
         }
@@ -242,6 +259,7 @@ impl Default for Limits {
             max_body_bytes: 256 << 10,
             queue_depth: 64,
             queue_bytes: 4 << 20,
+            sensor_backlog_bytes: 2 << 20,
             output_buffer: 1024,
             history_steps: 2048,
             finished_ttl_s: 600.0,
@@ -342,16 +360,29 @@ mod tests {
         c.validate().unwrap();
         assert!(c.bind.starts_with("127.0.0.1:"));
         assert!(c.admin_key.is_none() && c.cors_origins.is_empty());
+        // As documented: 10 s of a 30 frames/s camera that sees 50 faces fit the backlog.
+        let frame = crate::scene::DetectionFrame {
+            t: 0.0,
+            camera: 0,
+            boxes: Vec::new(),
+        };
+        let faces = 50 * std::mem::size_of::<crate::scene::FaceBox>();
+        assert!(300 * (std::mem::size_of_val(&frame) + faces) <= c.limits.sensor_backlog_bytes);
     }
 
     #[test]
     fn a_bad_time_or_rate_limit_is_named() {
         type Spoil = fn(&mut Limits);
-        let cases: [(&str, Spoil); 7] = [
+        let cases: [(&str, Spoil); 8] = [
             ("limits.finished_ttl_s", |l| l.finished_ttl_s = -1.0),
             // A queue that could not take one message of the largest size.
             ("limits.queue_bytes", |l| {
                 l.queue_bytes = 4 * l.max_message_bytes - 1
+            }),
+            // A backlog that could not hold one frame of the most boxes.
+            ("limits.sensor_backlog_bytes", |l| {
+                l.sensor_backlog_bytes =
+                    crate::pipeline::largest_frame_bytes(l.max_measurements) - 1
             }),
             ("limits.zenoh_refusals_per_s", |l| {
                 l.zenoh_refusals_per_s = f64::NAN

@@ -177,8 +177,9 @@ impl Registry {
         let seed = settings
             .seed
             .unwrap_or_else(|| u64::from_str_radix(&id, 16).unwrap_or(0));
-        let pipeline = Pipeline::new(layout.clone(), settings.clone(), seed)
+        let mut pipeline = Pipeline::new(layout.clone(), settings.clone(), seed)
             .map_err(|e| ApiError::config(e, "settings"))?;
+        pipeline.limit_backlog(self.config.limits.sensor_backlog_bytes);
         let token = auth::new_token();
         let spec = SessionSpec {
             id,

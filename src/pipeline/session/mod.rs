@@ -7,6 +7,7 @@
 //! the camera wait is measured in audio time, so a live session fed in time order produces exactly
 //! what the offline run produces.
 
+mod sensors;
 mod step;
 #[cfg(test)]
 mod tests;
@@ -90,6 +91,8 @@ pub struct Pipeline {
     finishing: bool,
     /// Where the (zero-padded) input ends once finishing; steps past it are not run.
     end_sample: Option<u64>,
+    /// Bytes the sensor frames waiting for their step may hold together (`None`: no bound).
+    backlog_limit: Option<usize>,
 }
 
 impl Pipeline {
@@ -150,6 +153,7 @@ impl Pipeline {
             stats: PipelineStats::default(),
             finishing: false,
             end_sample: None,
+            backlog_limit: None,
             layout,
             cfg,
         })
@@ -232,44 +236,6 @@ impl Pipeline {
         self.separation.as_mut()?.detach(handoff)
     }
 
-    /// The refusal of a sensor frame at time `t` whose tracker step has already run, if it is.
-    fn late(&self, what: &str, t: f64) -> Option<InputError> {
-        let step_start = self.clock.step_bounds(self.next_step).0;
-        (t < step_start).then(|| {
-            let msg = format!(
-                "{what} at {t} s arrived after its tracker step ran (now at {step_start} s)"
-            );
-            InputError::new("late", "t", msg)
-        })
-    }
-
-    /// The session's present (s): the end of the audio received or, in a session without
-    /// audio, its sensors' newest time (at least the start of the step the tracker is at).
-    fn present(&self) -> f64 {
-        match &self.audio {
-            Some(a) => self.clock.time_of(a.end()),
-            None => self
-                .cameras
-                .iter()
-                .map(SensorQueue::last_time)
-                .chain(self.devices.iter().map(SensorQueue::last_time))
-                .fold(self.clock.step_bounds(self.next_step).0, f64::max),
-        }
-    }
-
-    /// The refusal of a sensor frame at time `t` further than `max_lead_s` ahead of the
-    /// session's present, if it is.
-    fn too_early(&self, t: f64) -> Option<InputError> {
-        let present = self.present();
-        (t > present + self.cfg.max_lead_s).then(|| {
-            let msg = format!(
-                "frame at {t} s is more than max_lead_s ({} s) ahead of the session's present ({present:.3} s)",
-                self.cfg.max_lead_s
-            );
-            InputError::new("too_early", "t", msg)
-        })
-    }
-
     fn reject<T>(&mut self, e: InputError) -> Result<T, InputError> {
         self.stats.rejected += 1;
         Err(e)
@@ -344,77 +310,6 @@ impl Pipeline {
         }
         audio.append_interleaved(samples);
         self.stats.samples_in += (samples.len() / channels) as u64;
-        self.poll_to(sink);
-        Ok(())
-    }
-
-    /// Accepts one camera frame. Frames whose step already ran are refused as late.
-    pub fn push_detections(
-        &mut self,
-        frame: DetectionFrame,
-    ) -> Result<Vec<PipelineEvent>, InputError> {
-        collected(|sink| self.push_detections_to(frame, sink))
-    }
-
-    /// [`Pipeline::push_detections`] handing each event to `sink` as soon as it exists.
-    pub fn push_detections_to(
-        &mut self,
-        mut frame: DetectionFrame,
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let last = self
-            .cameras
-            .get(frame.camera)
-            .map_or(f64::NEG_INFINITY, SensorQueue::last_time);
-        if let Err(e) = input::check_detections(&self.layout, &frame, last) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.too_early(frame.t) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.late("camera frame", frame.t) {
-            self.stats.late_frames += 1;
-            return self.reject(e);
-        }
-        let min_score = self.cfg.min_box_score;
-        frame
-            .boxes
-            .retain(|b| b.score.is_none_or(|s| s >= min_score));
-        self.stats.detection_frames_in += 1;
-        self.cameras[frame.camera].push(frame);
-        self.poll_to(sink);
-        Ok(())
-    }
-
-    /// Accepts one frame of directions/positions from a device that localises itself.
-    pub fn push_device_measurements(
-        &mut self,
-        frame: AudioMeasurementFrame,
-    ) -> Result<Vec<PipelineEvent>, InputError> {
-        collected(|sink| self.push_device_measurements_to(frame, sink))
-    }
-
-    /// [`Pipeline::push_device_measurements`] handing each event to `sink` as soon as it exists.
-    pub fn push_device_measurements_to(
-        &mut self,
-        frame: AudioMeasurementFrame,
-        sink: &mut EventSink<'_>,
-    ) -> Result<(), InputError> {
-        let last = self
-            .devices
-            .get(frame.array)
-            .map_or(f64::NEG_INFINITY, SensorQueue::last_time);
-        if let Err(e) = input::check_device_measurements(&self.layout, &frame, last) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.too_early(frame.t) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.late("measurement frame", frame.t) {
-            return self.reject(e);
-        }
-        self.stats.device_frames_in += 1;
-        self.devices[frame.array].push(frame);
         self.poll_to(sink);
         Ok(())
     }

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::geometry::MicArray;
+use crate::pipeline::sensor_queue::Timed;
 use crate::scene::{DetectionFrame, FaceBox};
 
 /// The protocol tests' four-microphone array and camera; without audio, the array only
@@ -77,6 +78,31 @@ fn with_audio_the_lead_is_measured_from_the_audio_received() {
     assert_eq!(e.code, "too_early");
     p.push_audio(16_000, 4, &vec![0.0; 4 * 48_000]).unwrap();
     p.push_detections(frame(4.5)).unwrap();
+}
+
+#[test]
+fn frames_past_the_backlog_are_refused_until_the_audio_takes_them() {
+    // A client that sets a long lead and floods frames within it holds only the backlog.
+    let cfg = PipelineConfig {
+        max_lead_s: 3600.0,
+        ..PipelineConfig::default()
+    };
+    let mut p = Pipeline::new(layout(true), cfg, 1).unwrap();
+    let held = frame(0.0).held_bytes();
+    p.limit_backlog(10 * held);
+    p.push_audio(0, 4, &vec![0.0; 4 * 4_096]).unwrap();
+    for i in 0..10 {
+        p.push_detections(frame(1.0 + 0.01 * f64::from(i))).unwrap();
+    }
+    let e = p.push_detections(frame(1.2)).unwrap_err();
+    assert_eq!((e.code, e.field.as_str()), ("backlog_full", "t"));
+    assert!(e.message.contains("limits.sensor_backlog_bytes"), "{e}");
+    let rejected = p.stats().rejected;
+    // Once the audio passes them, their steps take the frames and new ones are accepted.
+    p.push_audio(4_096, 4, &vec![0.0; 4 * 32_000]).unwrap();
+    p.push_detections(frame(3.0)).unwrap();
+    assert_eq!(p.stats().rejected, rejected);
+    assert_eq!(p.stats().detection_frames_in, 11);
 }
 
 /// The tracks of two seconds of one face and silence, after `change` (refused or not).
