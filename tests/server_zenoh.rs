@@ -22,59 +22,13 @@ use avsep::protocol::{ClientMessage, ErrorBody, LabelAudioFrame, SampleEncoding,
 use avsep::scene::Scene;
 use avsep::server::ServerConfig;
 use avsep::server::client::{FeedItem, FeedMessage, create_body, http, scene_feed};
-use avsep::server::zenoh_transport::{ZenohConfig, ZenohTransport};
-use server_support::{TestServer, assert_same_tracks, audio_difference, offline, scene, settings};
+use server_support::zenoh::ZenohServer;
+use server_support::{assert_same_tracks, audio_difference, offline, scene, settings};
 use tokio::sync::mpsc::{UnboundedReceiver, unbounded_channel};
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
 
 const WAIT: Duration = Duration::from_secs(20);
-
-/// A server with its Zenoh transport on a free loopback port.
-struct ZenohServer {
-    http: TestServer,
-    transport: ZenohTransport,
-    endpoint: String,
-}
-
-impl ZenohServer {
-    /// The port is found free by binding it and letting it go, so another test's outgoing
-    /// connection can take it before Zenoh listens there (seen in CI as "Address already in
-    /// use"); a few fresh ports are tried before giving up.
-    async fn start(cfg: ServerConfig) -> Self {
-        let zenoh = cfg.zenoh.clone();
-        let http = TestServer::start(cfg).await;
-        let mut last = None;
-        for _ in 0..5 {
-            let port = std::net::TcpListener::bind("127.0.0.1:0")
-                .unwrap()
-                .local_addr()
-                .unwrap()
-                .port();
-            let endpoint = format!("tcp/127.0.0.1:{port}");
-            let zcfg = ZenohConfig {
-                listen: vec![endpoint.clone()],
-                ..zenoh.clone()
-            };
-            match ZenohTransport::start(&zcfg, http.registry.clone()).await {
-                Ok(transport) => {
-                    return Self {
-                        http,
-                        transport,
-                        endpoint,
-                    };
-                }
-                Err(e) => last = Some(e),
-            }
-        }
-        panic!("no free port for the Zenoh transport: {last:?}");
-    }
-
-    async fn stop(self) {
-        self.http.stop().await;
-        self.transport.close(Duration::from_secs(2)).await;
-    }
-}
 
 /// What the edge peer received from one session.
 #[derive(Default)]
@@ -135,16 +89,21 @@ struct Edge {
     _sub: zenoh::pubsub::Subscriber<()>,
 }
 
+/// A Zenoh peer connected to the server at `endpoint` only (scouting off).
+async fn peer(endpoint: &str) -> zenoh::Session {
+    let mut c = zenoh::Config::default();
+    c.insert_json5("mode", r#""peer""#).unwrap();
+    c.insert_json5("connect/endpoints", &format!(r#"["{endpoint}"]"#))
+        .unwrap();
+    c.insert_json5("listen/endpoints", "[]").unwrap();
+    c.insert_json5("scouting/multicast/enabled", "false")
+        .unwrap();
+    zenoh::open(c).await.unwrap()
+}
+
 impl Edge {
     async fn connect(endpoint: &str) -> Self {
-        let mut c = zenoh::Config::default();
-        c.insert_json5("mode", r#""peer""#).unwrap();
-        c.insert_json5("connect/endpoints", &format!(r#"["{endpoint}"]"#))
-            .unwrap();
-        c.insert_json5("listen/endpoints", "[]").unwrap();
-        c.insert_json5("scouting/multicast/enabled", "false")
-            .unwrap();
-        let z = zenoh::open(c).await.unwrap();
+        let z = peer(endpoint).await;
         let (tx, out) = unbounded_channel();
         let sub = z
             .declare_subscriber("avsep/*/out/**")
@@ -575,5 +534,53 @@ async fn a_flood_without_credentials_is_published_at_a_bounded_rate() {
         "{:?}",
         heard.errors[0]
     );
+    server.stop().await;
+}
+
+/// A session nobody listens to over Zenoh neither broadcasts nor publishes its separated audio
+/// and measurements: its interest in each follows the Zenoh subscribers whose keys match it, as
+/// they come and go.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn optional_outputs_follow_the_zenoh_subscribers_that_want_them() {
+    let server = ZenohServer::start(ServerConfig::default()).await;
+    let sc = scene("uca8", 0.5, 1, 31);
+    let s = server.http.create(&sc, settings(31), None).await;
+    let session = server.http.registry.get(&s.id).unwrap();
+    let wants = || {
+        (
+            session.interest().audio(),
+            session.interest().measurements(),
+        )
+    };
+    let until = async |want: (bool, bool)| {
+        let deadline = Instant::now() + WAIT;
+        while wants() != want {
+            assert!(
+                Instant::now() < deadline,
+                "{:?} never became {want:?}",
+                wants()
+            );
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+    };
+    assert_eq!(wants(), (false, false), "nobody listens yet");
+    let z = peer(&server.endpoint).await;
+    let audio = z
+        .declare_subscriber(format!("avsep/{}/out/audio/**", s.id))
+        .await
+        .unwrap();
+    until((true, false)).await;
+    let everything = z.declare_subscriber("avsep/*/out/**").await.unwrap();
+    until((true, true)).await;
+    drop(audio);
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert_eq!(
+        wants(),
+        (true, true),
+        "the wildcard subscriber still wants both"
+    );
+    drop(everything);
+    until((false, false)).await;
+    z.close().await.unwrap();
     server.stop().await;
 }

@@ -64,6 +64,16 @@ pub fn output_events(session: &str) -> String {
     format!("{ROOT}/{session}/out/events")
 }
 
+/// Every label's separated audio: `avsep/<session>/out/audio/**`.
+pub fn output_audio_keys(session: &str) -> String {
+    format!("{ROOT}/{session}/out/audio/**")
+}
+
+/// Every array's measurements: `avsep/<session>/out/measurements/**`.
+pub fn output_measurement_keys(session: &str) -> String {
+    format!("{ROOT}/{session}/out/measurements/**")
+}
+
 /// Everything a session publishes: `avsep/<session>/out/**`.
 pub fn session_output(session: &str) -> String {
     format!("{ROOT}/{session}/out/**")

@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod hooked;
+pub mod zenoh;
 
 use std::collections::BTreeMap;
 use std::net::SocketAddr;

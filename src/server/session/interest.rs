@@ -3,7 +3,7 @@
 //! task; audio is a message per label and STFT hop).
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use tokio::sync::broadcast;
 
@@ -63,6 +63,11 @@ impl Subscription {
         }
     }
 
+    /// A claim on `output` in the same session's interest, off until set.
+    pub fn claim(&self, output: Optional) -> Claim {
+        Claim::new(self.interest.clone(), output)
+    }
+
     /// Narrows (or widens) what this subscriber wants to `selection`.
     pub fn want(&mut self, selection: &OutputSelection) {
         let (audio, measurements) = (selection.audio.is_some(), selection.measurements);
@@ -75,6 +80,55 @@ impl Subscription {
 impl Drop for Subscription {
     fn drop(&mut self) {
         self.interest.adjust(self.audio, self.measurements, false);
+    }
+}
+
+/// An optional output a [`Claim`] is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Optional {
+    /// Separated audio.
+    Audio,
+    /// The localiser's measurements.
+    Measurements,
+}
+
+/// A share of the session's [`Interest`] in one optional output that any thread may switch on
+/// and off (a Zenoh matching listener's callback does, as subscribers come and go); off at
+/// first, released when dropped.
+#[derive(Debug)]
+pub struct Claim {
+    interest: Arc<Interest>,
+    output: Optional,
+    on: AtomicBool,
+}
+
+impl Claim {
+    /// An unclaimed share of `interest` in `output`.
+    pub fn new(interest: Arc<Interest>, output: Optional) -> Self {
+        Self {
+            interest,
+            output,
+            on: AtomicBool::new(false),
+        }
+    }
+
+    /// Claims the output (`true`) or lets it go; repeating a state changes nothing.
+    pub fn set(&self, on: bool) {
+        if self.on.swap(on, Ordering::AcqRel) != on {
+            let audio = self.output == Optional::Audio;
+            self.interest.adjust(audio, !audio, on);
+        }
+    }
+
+    /// Whether the output is claimed.
+    pub fn is_on(&self) -> bool {
+        self.on.load(Ordering::Acquire)
+    }
+}
+
+impl Drop for Claim {
+    fn drop(&mut self) {
+        self.set(false);
     }
 }
 
@@ -103,5 +157,23 @@ mod tests {
         assert!(!interest.audio() && interest.measurements());
         drop(a);
         assert!(!interest.measurements());
+    }
+
+    #[test]
+    fn a_claim_counts_once_while_on_and_not_after_it_is_dropped() {
+        let interest = Arc::new(Interest::default());
+        let audio = Claim::new(interest.clone(), Optional::Audio);
+        assert!(!interest.audio() && !audio.is_on());
+        audio.set(true);
+        audio.set(true);
+        assert!(interest.audio() && !interest.measurements());
+        let measurements = Claim::new(interest.clone(), Optional::Measurements);
+        measurements.set(true);
+        audio.set(false);
+        assert!(!interest.audio() && interest.measurements());
+        audio.set(true);
+        drop(audio);
+        drop(measurements);
+        assert!(!interest.audio() && !interest.measurements());
     }
 }

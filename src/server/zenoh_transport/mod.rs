@@ -4,7 +4,8 @@
 //!
 //! It attaches to sessions the way the WebSocket does: inbound samples go through
 //! [`SessionHandle::submit`](crate::server::session::Session::submit) into the session's bounded
-//! queue, and one task per session subscribes to the session's output broadcast and publishes it. A
+//! queue, and one task per session subscribes to the session's output broadcast and publishes it
+//! (separated audio and measurements only while a Zenoh subscriber wants them: [`wanted`]). A
 //! registry hook attaches every session as it is inserted, whichever transport created it, so
 //! nothing it produces is missed. Session management (create, list, inspect) is a queryable under
 //! `avsep/sessions/**`, served by one task from a bounded queue. Zenoh callbacks never block: they
@@ -14,6 +15,7 @@ mod config;
 mod inbound;
 mod outbound;
 mod queries;
+mod wanted;
 
 use std::collections::HashSet;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -25,6 +27,7 @@ use zenoh::query::Queryable;
 
 pub use config::{ZenohConfig, ZenohMode};
 
+use crate::protocol::OutputSelection;
 use crate::protocol::rest::SessionState;
 use crate::protocol::zenoh_keys::{SESSIONS_ALL, SESSIONS_CREATE, session_input};
 
@@ -66,8 +69,10 @@ impl Shared {
         if !fresh {
             return;
         }
-        // Zenoh subscribers are not known here: the fan-out publishes every output.
-        let outputs = s.subscribe();
+        // The optional outputs go out only while a Zenoh subscriber wants them.
+        let mut outputs = s.subscribe();
+        let wanted = wanted::Wanted::declare(&self.zenoh, s.id(), &outputs);
+        outputs.want(&OutputSelection::default());
         let admin = self.registry.config().admin_key.clone();
         let subscriber = self
             .zenoh
@@ -82,7 +87,7 @@ impl Shared {
             }
         };
         self.active.fetch_add(1, Ordering::AcqRel);
-        let task = outbound::fan_out(self.clone(), s.clone(), outputs, subscriber);
+        let task = outbound::fan_out(self.clone(), s.clone(), (outputs, wanted), subscriber);
         self.runtime.spawn(task);
     }
 

@@ -1,5 +1,6 @@
 //! One session's fan-out: reads the session's output broadcast (the one WebSocket clients read)
-//! and publishes each output under `avsep/<session>/out/...`. A fan-out that falls behind skips
+//! and publishes each output under `avsep/<session>/out/...` (the optional ones only while a
+//! Zenoh subscriber wants them, see `wanted`). A fan-out that falls behind skips
 //! ahead and publishes an `output_dropped` warning, like a slow WebSocket client; publications
 //! use Zenoh's default congestion control for puts (drop rather than block), so a congested
 //! network never holds up the runtime or the session.
@@ -17,13 +18,14 @@ use crate::protocol::zenoh_keys::{
 use crate::protocol::{LabelAudioFrame, SampleEncoding, ServerMessage, SessionEvent};
 use crate::server::session::{Output, SessionHandle};
 
+use super::wanted::Wanted;
 use super::{Shared, ZENOH_CLIENT};
 
 /// Publishes the session's outputs until it closes, then undeclares its input subscriber.
 pub(super) async fn fan_out(
     shared: Arc<Shared>,
     s: SessionHandle,
-    mut subscription: Subscription,
+    (mut subscription, wanted): (Subscription, Wanted),
     subscriber: Option<Subscriber<()>>,
 ) {
     let events = output_events(s.id());
@@ -31,6 +33,9 @@ pub(super) async fn fan_out(
         match subscription.outputs.recv().await {
             Ok(out) => {
                 let last = matches!(out.as_ref(), Output::Closed { .. });
+                if !wanted.wants(&out) {
+                    continue;
+                }
                 if let Some((key, payload, encoding)) = encode(&s, &out, &events) {
                     put(&shared.zenoh, key, payload, encoding).await;
                 }
