@@ -5,7 +5,7 @@
 //! It attaches to sessions the way the WebSocket does: inbound samples go through
 //! [`SessionHandle::submit`](crate::server::session::Session::submit) into the session's bounded
 //! queue, and one task per session subscribes to the session's output broadcast and publishes it
-//! (separated audio and measurements only while a Zenoh subscriber wants them: [`wanted`]). A
+//! (separated audio and measurements only while a Zenoh subscriber wants them: `wanted.rs`). A
 //! registry hook attaches every session as it is inserted, whichever transport created it, so
 //! nothing it produces is missed. Session management (create, list, inspect) is a queryable under
 //! `avsep/sessions/**`, served by one task from a bounded queue. Zenoh callbacks never block: they
