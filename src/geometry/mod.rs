@@ -24,6 +24,10 @@ pub type Pixel = nalgebra::Vector2<f64>;
 
 pub use crate::field_error::FieldError as GeometryError;
 
+/// Largest coordinate (m, either sign) a position from outside may have: no room is larger,
+/// and coordinates far beyond it overflow distances to infinity (and steering gains to NaN).
+pub const MAX_COORDINATE_M: f64 = 1e4;
+
 pub(crate) fn check_finite(field: &str, values: &[f64]) -> Result<(), GeometryError> {
     if values.iter().all(|v| v.is_finite()) {
         Ok(())

@@ -381,20 +381,22 @@ impl LocalizerConfig {
 
     fn validate_positions(&self) -> Result<(), ConfigError> {
         let p = &self.positions;
+        // Each evaluation is an SRP over every pair, every frame: a session's settings may ask
+        // for some thirty times the default's work, not for seconds per frame.
         ConfigError::check(
-            (2..=1_000_000).contains(&p.kept_points),
+            (2..=10_000).contains(&p.kept_points),
             "positions.kept_points",
-            "must be in 2..=1000000",
+            "must be in 2..=10000",
         )?;
         ConfigError::check(
-            p.initial_points >= p.kept_points && p.initial_points <= 1_000_000,
+            p.initial_points >= p.kept_points && p.initial_points <= 100_000,
             "positions.initial_points",
-            "must be at least kept_points and at most 1000000",
+            "must be at least kept_points and at most 100000",
         )?;
         ConfigError::check(
-            p.max_evaluations >= p.initial_points && p.max_evaluations <= 100_000_000,
+            p.max_evaluations >= p.initial_points && p.max_evaluations <= 100_000,
             "positions.max_evaluations",
-            "must be at least initial_points and at most 1e8",
+            "must be at least initial_points and at most 100000",
         )?;
         ConfigError::check(
             p.min_volume_m3.is_finite() && p.min_volume_m3 > 0.0,
@@ -563,6 +565,13 @@ mod tests {
         assert_eq!(
             bad(&|c| c.positions.kept_points = 5000),
             "positions.initial_points"
+        );
+        assert_eq!(
+            bad(&|c| {
+                c.positions.initial_points = 100_000;
+                c.positions.max_evaluations = 100_000_000;
+            }),
+            "positions.max_evaluations"
         );
         assert_eq!(
             bad(&|c| c.peaks.relative_power = f64::NAN),

@@ -43,6 +43,10 @@ pub const ZENOH_CLIENT: ClientId = u64::MAX;
 #[error("zenoh: {0}")]
 pub struct ZenohError(pub String);
 
+/// Bytes a Zenoh message may carry beyond the largest payload the limits admit (its key,
+/// attachment and encoding).
+const MESSAGE_HEADROOM: usize = 64 << 10;
+
 fn zerr(e: impl std::fmt::Display) -> ZenohError {
     ZenohError(e.to_string())
 }
@@ -112,9 +116,15 @@ impl ZenohTransport {
     /// Joins Zenoh as `config` says, attaches to every session `registry` holds or will hold,
     /// and declares the session-management queryables. Needs a multi-threaded Tokio runtime.
     pub async fn start(config: &ZenohConfig, registry: Arc<Registry>) -> Result<Self, ZenohError> {
-        let zenoh = zenoh::open(config.to_zenoh().map_err(zerr)?)
-            .await
+        let mut zc = config.to_zenoh().map_err(zerr)?;
+        // Zenoh reassembles a fragmented message of up to 1 GiB (its default) per link and
+        // channel before any of our checks sees it: nothing larger than our own limits admit
+        // is worth reassembling.
+        let limits = &registry.config().limits;
+        let largest = limits.max_message_bytes.max(limits.max_body_bytes) + MESSAGE_HEADROOM;
+        zc.insert_json5("transport/link/rx/max_message_size", &largest.to_string())
             .map_err(zerr)?;
+        let zenoh = zenoh::open(zc).await.map_err(zerr)?;
         let shared = Arc::new(Shared {
             zenoh: zenoh.clone(),
             registry: registry.clone(),

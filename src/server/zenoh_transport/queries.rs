@@ -118,18 +118,19 @@ async fn answer(shared: &Shared, q: &Query) -> Result<Option<Vec<u8>>, ErrorBody
     let body = match what {
         SessionQuery::Create => {
             admin_only(shared, q)?;
-            let payload = q
-                .payload()
-                .map(|p| p.to_bytes().into_owned())
-                .unwrap_or_default();
+            // Measured before it is copied.
             let max = registry.config().limits.max_body_bytes;
-            if payload.len() > max {
+            if q.payload().map_or(0, |p| p.len()) > max {
                 return Err(error(
                     "too_large",
                     Some("payload"),
                     format!("the body exceeds limits.max_body_bytes ({max})"),
                 ));
             }
+            let payload = q
+                .payload()
+                .map(|p| p.to_bytes().into_owned())
+                .unwrap_or_default();
             let req: CreateSession = parse_json(&payload).map_err(|e| e.body)?;
             let r = registry.clone();
             let (session, token) = tokio::task::spawn_blocking(move || r.create(req))

@@ -2,8 +2,18 @@
 //! first offending one by its dotted path.
 
 use super::TrackerConfig;
+use crate::geometry::MAX_COORDINATE_M;
 
 pub use crate::field_error::FieldError as ConfigError;
+
+/// Most Gibbs samples a GLMB step may request (ten times the default).
+pub const MAX_REQUESTED_HYPOTHESES: usize = 10_000;
+/// Most hypotheses a GLMB step may keep.
+pub const MAX_KEPT_HYPOTHESES: usize = 10_000;
+/// Most Gaussian components a GM-PHD may keep (ten times the default).
+pub const MAX_COMPONENTS: usize = 1_000;
+/// Most fixed birth points: each is offered every step.
+pub const MAX_FIXED_BIRTHS: usize = 64;
 
 fn positive(v: f64, field: &str) -> Result<(), ConfigError> {
     ConfigError::check(v.is_finite() && v > 0.0, field, "must be a positive number")
@@ -116,15 +126,21 @@ impl TrackerConfig {
             "must be in (0.5, 1]",
         )?;
         let g = &self.glmb;
+        // The step's work and memory grow with these; a session's settings cannot ask for more.
         ConfigError::check(
-            (1..=1_000_000).contains(&g.requested_hypotheses),
+            (1..=MAX_REQUESTED_HYPOTHESES).contains(&g.requested_hypotheses),
             "glmb.requested_hypotheses",
-            "must be between 1 and 1000000",
+            &format!("must be between 1 and {MAX_REQUESTED_HYPOTHESES}"),
         )?;
         ConfigError::check(
-            (1..=1_000_000).contains(&g.max_hypotheses),
+            (1..=MAX_KEPT_HYPOTHESES).contains(&g.max_hypotheses),
             "glmb.max_hypotheses",
-            "must be between 1 and 1000000",
+            &format!("must be between 1 and {MAX_KEPT_HYPOTHESES}"),
+        )?;
+        ConfigError::check(
+            (1..=g.requested_hypotheses).contains(&g.min_parent_samples),
+            "glmb.min_parent_samples",
+            "must be between 1 and requested_hypotheses",
         )?;
         probability_open(g.prune_threshold, "glmb.prune_threshold")?;
         Ok(())
@@ -136,9 +152,9 @@ impl TrackerConfig {
         probability_open(p.prune_threshold, "gmphd.prune_threshold")?;
         positive(p.merge_threshold, "gmphd.merge_threshold")?;
         ConfigError::check(
-            (1..=100_000).contains(&p.max_components),
+            (1..=MAX_COMPONENTS).contains(&p.max_components),
             "gmphd.max_components",
-            "must be between 1 and 100000",
+            &format!("must be between 1 and {MAX_COMPONENTS}"),
         )?;
         positive(p.extraction_threshold, "gmphd.extraction_threshold")?;
         positive(p.label_gate_m, "gmphd.label_gate_m")?;
@@ -176,12 +192,17 @@ impl TrackerConfig {
 
     fn validate_birth(&self) -> Result<(), ConfigError> {
         let b = &self.birth;
+        ConfigError::check(
+            b.fixed.len() <= MAX_FIXED_BIRTHS,
+            "birth.fixed",
+            &format!("at most {MAX_FIXED_BIRTHS} fixed births"),
+        )?;
         for (i, f) in b.fixed.iter().enumerate() {
             for (j, v) in f.position.iter().enumerate() {
                 ConfigError::check(
-                    v.is_finite(),
+                    v.is_finite() && v.abs() <= MAX_COORDINATE_M,
                     &format!("birth.fixed[{i}].position[{j}]"),
-                    "must be finite",
+                    &format!("must be a finite number of metres within {MAX_COORDINATE_M}"),
                 )?;
             }
             probability_open(f.existence, &format!("birth.fixed[{i}].existence"))?;
@@ -228,7 +249,8 @@ impl TrackerConfig {
 
 #[cfg(test)]
 mod tests {
-    use crate::track::config::{TrackerConfig, TrackerKind};
+    use super::*;
+    use crate::track::config::{FixedBirth, TrackerConfig, TrackerKind};
 
     #[test]
     fn defaults_are_valid_and_round_trip() {
@@ -256,5 +278,48 @@ mod tests {
         );
         let c: TrackerConfig = serde_json::from_str(r#"{"tracker": "gmphd"}"#).unwrap();
         assert_eq!(c.tracker, TrackerKind::Gmphd);
+    }
+
+    fn birth(position: [f64; 3]) -> FixedBirth {
+        FixedBirth {
+            position,
+            existence: 0.005,
+            position_std_m: 0.2,
+            velocity_std_m_per_s: 0.2,
+        }
+    }
+
+    #[test]
+    fn sizes_a_session_could_not_afford_are_named() {
+        let field = |edit: fn(&mut TrackerConfig)| {
+            let mut c = TrackerConfig::default();
+            edit(&mut c);
+            c.validate().unwrap_err().field
+        };
+        // More samples per parent than the step requests would spin the Gibbs chain for ever.
+        assert_eq!(
+            field(|c| c.glmb.min_parent_samples = 1_000_000_000_000_000),
+            "glmb.min_parent_samples"
+        );
+        assert_eq!(
+            field(|c| c.glmb.requested_hypotheses = MAX_REQUESTED_HYPOTHESES + 1),
+            "glmb.requested_hypotheses"
+        );
+        assert_eq!(
+            field(|c| c.glmb.max_hypotheses = MAX_KEPT_HYPOTHESES + 1),
+            "glmb.max_hypotheses"
+        );
+        assert_eq!(
+            field(|c| c.gmphd.max_components = MAX_COMPONENTS + 1),
+            "gmphd.max_components"
+        );
+        assert_eq!(
+            field(|c| c.birth.fixed = vec![birth([1.0, 1.0, 1.5]); MAX_FIXED_BIRTHS + 1]),
+            "birth.fixed"
+        );
+        assert_eq!(
+            field(|c| c.birth.fixed = vec![birth([1e200, 0.0, 1.0])]),
+            "birth.fixed[0].position[0]"
+        );
     }
 }
