@@ -15,6 +15,14 @@ pub struct AudioHistory {
     capacity: usize,
 }
 
+/// Samples a session's history must hold: its longest analysis `frame`, four steps of `step`
+/// samples, and the camera wait (`wait` samples), since a step that waits for its cameras
+/// still needs its own audio when it runs. The pipeline hands the audio in at most a step at
+/// a time, so nothing it was sent leaves the history before its step has run.
+pub fn history_samples(frame: usize, step: usize, wait: usize) -> usize {
+    frame + 4 * step + wait
+}
+
 impl AudioHistory {
     /// History of `channels` channels keeping at least `capacity` samples.
     pub fn new(channels: usize, capacity: usize) -> Self {
@@ -24,6 +32,12 @@ impl AudioHistory {
             end: 0,
             capacity,
         }
+    }
+
+    /// Keeps at least `capacity` samples from now on (the oldest go if it shrinks).
+    pub fn set_capacity(&mut self, capacity: usize) {
+        self.capacity = capacity;
+        self.trim();
     }
 
     /// Absolute index one past the newest sample.

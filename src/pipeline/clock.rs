@@ -32,6 +32,11 @@ impl StepClock {
         n as f64 / self.sample_rate as f64
     }
 
+    /// Samples in `seconds` (rounded up; none for a negative time).
+    pub fn samples_in(&self, seconds: f64) -> usize {
+        (seconds.max(0.0) * f64::from(self.sample_rate)).ceil() as usize
+    }
+
     /// First sample of step `k`.
     pub fn step_start_sample(&self, k: u64) -> u64 {
         k * self.step_samples

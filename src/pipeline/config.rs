@@ -55,7 +55,8 @@ pub struct PipelineConfig {
     /// Tracker step period in seconds (the paper's 0.128 s by default; 0.032 to 1.0).
     pub step_s: f64,
     /// How long (seconds of audio) a step waits for cameras that have not yet sent a frame at or
-    /// after the step's end; after that the step runs and such cameras count as absent.
+    /// after the step's end; after that the step runs and such cameras count as absent. The
+    /// audio history holds the wait's audio too, so it counts in the session's memory bound.
     pub camera_wait_s: f64,
     /// Seed of the session's random numbers; derived from the session id (or scene) when absent.
     pub seed: Option<u64>,

@@ -29,7 +29,7 @@ use super::sensor_queue::SensorQueue;
 use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
 use super::speaking::SpeakingFilter;
 use super::stages::{SensorClutter, SensorRoutes, Timeline};
-use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
+use super::{AudioHistory, EventSink, PipelineEvent, StepClock, history_samples};
 
 /// Counters of a pipeline's life, for summaries and metrics.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -115,7 +115,7 @@ impl Pipeline {
             None
         };
         let sep_frame = separation.as_ref().map_or(0, |s| s.frame_len());
-        let history = loc_frame.max(sep_frame) + 4 * clock.step_samples as usize;
+        let history = history_len(&clock, loc_frame.max(sep_frame), cfg.camera_wait_s);
         let keyed = sensors_from_layout(&layout, &cfg.track);
         let routes = SensorRoutes::new(&layout, &cfg, keyed.iter().map(|(k, _)| *k).collect());
         let mut localizer = localizer;
@@ -276,6 +276,7 @@ impl Pipeline {
         }
         let max_gap = (self.cfg.max_gap_s * self.clock.sample_rate as f64) as u64;
         let sr = self.clock.sample_rate as f64;
+        let step = self.clock.step_samples as usize;
         let Some(audio) = self.audio.as_mut() else {
             return self.reject(InputError::new(
                 "no_audio",
@@ -299,7 +300,6 @@ impl Pipeline {
                 );
                 return self.reject(InputError::new("gap_too_long", "first_sample", msg));
             }
-            audio.append_silence(gap as usize);
             self.stats.samples_bridged += gap;
             sink(PipelineEvent::Warning {
                 code: "gap_bridged",
@@ -307,10 +307,25 @@ impl Pipeline {
                     "{gap} missing samples before sample {first_sample} replaced by silence"
                 ),
             });
+            // A step at a time, as the audio below, so the history holds each step's audio
+            // when it runs.
+            let mut left = gap as usize;
+            while left > 0 {
+                let n = left.min(step);
+                if let Some(a) = self.audio.as_mut() {
+                    a.append_silence(n);
+                }
+                self.poll_to(sink);
+                left -= n;
+            }
         }
-        audio.append_interleaved(samples);
+        for piece in samples.chunks(step * channels) {
+            if let Some(a) = self.audio.as_mut() {
+                a.append_interleaved(piece);
+            }
+            self.poll_to(sink);
+        }
         self.stats.samples_in += (samples.len() / channels) as u64;
-        self.poll_to(sink);
         Ok(())
     }
 
@@ -394,6 +409,12 @@ impl Pipeline {
         if separate && let Some(sep) = self.separation.as_mut() {
             sep.set_config(&cfg.separate)?;
         }
+        if let Some(a) = self.audio.as_mut() {
+            // The camera wait sizes the history.
+            let loc = (self.localizer.as_ref()).map_or(cfg.localize.frame, Localizer::frame_size);
+            let sep = self.separation.as_ref().map_or(0, |s| s.frame_len());
+            a.set_capacity(history_len(&self.clock, loc.max(sep), cfg.camera_wait_s));
+        }
         self.cfg = cfg;
         Ok(())
     }
@@ -468,6 +489,16 @@ fn changed_fields(
         (a, b) if a != b => out.push(path.to_string()),
         _ => {}
     }
+}
+
+/// The samples a session's audio history holds, for its longest analysis `frame` and its camera
+/// wait ([`history_samples`]).
+fn history_len(clock: &StepClock, frame: usize, camera_wait_s: f64) -> usize {
+    history_samples(
+        frame,
+        clock.step_samples as usize,
+        clock.samples_in(camera_wait_s),
+    )
 }
 
 /// Runs `push` with a sink that collects its events.

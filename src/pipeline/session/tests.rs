@@ -204,3 +204,62 @@ fn clutter_estimation_changes_on_a_live_session() {
     feed(&mut p, 60, 100);
     assert!(camera_clutter(&p).1 > 5.0 * configured);
 }
+
+#[test]
+fn a_message_longer_than_the_history_is_processed_whole() {
+    // Three seconds in one message, against the same audio in 1,024-sample blocks: the history
+    // holds a few steps, so the intake must run each step before the next one's audio comes.
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let samples: Vec<f32> = (0..4 * 48_000)
+        .map(|_| rng.random_range(-0.5..0.5))
+        .collect();
+    let run = |blocks: &[&[f32]]| {
+        let mut p = Pipeline::new(layout(true), PipelineConfig::default(), 1).unwrap();
+        let mut events = Vec::new();
+        let mut at = 0;
+        for b in blocks {
+            events.extend(p.push_audio(at, 4, b).unwrap());
+            at += (b.len() / 4) as u64;
+        }
+        (events, p.stats().steps)
+    };
+    let (whole, steps) = run(&[&samples]);
+    let blocks: Vec<&[f32]> = samples.chunks(4 * 1024).collect();
+    let (pieces, _) = run(&blocks);
+    // Every step of the three seconds but the last, which waits for the camera.
+    assert_eq!(steps, 22);
+    let warned = |e: &PipelineEvent| matches!(e, PipelineEvent::Warning { .. });
+    assert!(!whole.iter().any(warned), "{whole:?}");
+    assert_eq!(whole, pieces);
+}
+
+#[test]
+fn a_long_camera_wait_keeps_the_audio_its_steps_wait_with() {
+    // A second of camera wait is eight steps: the history grows to hold their audio, also when
+    // the wait is raised on a running session.
+    let samples = vec![0.01f32; 4 * 48_000];
+    for live in [false, true] {
+        let wait = PipelineConfig {
+            camera_wait_s: 1.0,
+            ..PipelineConfig::default()
+        };
+        let first = if live {
+            PipelineConfig::default()
+        } else {
+            wait.clone()
+        };
+        let mut p = Pipeline::new(layout(true), first, 1).unwrap();
+        if live {
+            p.update_config(wait).unwrap();
+        }
+        let mut events = Vec::new();
+        for (i, b) in samples.chunks(4 * 1024).enumerate() {
+            events.extend(p.push_audio(1024 * i as u64, 4, b).unwrap());
+        }
+        // The camera never reports: steps ending by 2 s have waited their second.
+        assert_eq!(p.stats().steps, 15);
+        let warned = |e: &PipelineEvent| matches!(e, PipelineEvent::Warning { .. });
+        assert!(!events.iter().any(warned), "{events:?}");
+    }
+}
