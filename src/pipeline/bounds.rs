@@ -21,6 +21,8 @@ pub struct SizeBounds {
     pub max_frame: usize,
     /// Most labels separated at once (`separate.lifecycle.max_streams`).
     pub max_streams: usize,
+    /// Cameras in the session: each keeps its latest frame and is a sensor of every step.
+    pub max_cameras: usize,
 }
 
 impl Default for SizeBounds {
@@ -32,6 +34,7 @@ impl Default for SizeBounds {
             max_pair_span_m: 250.0,
             max_frame: 4096,
             max_streams: 16,
+            max_cameras: 16,
         }
     }
 }
@@ -77,6 +80,16 @@ impl SizeBounds {
     /// Refuses a layout beyond `max_microphones` or `max_pair_span_m`, naming the array that
     /// passes the limit (`arrays[i].mics`), before anything is sized from it.
     pub fn check_layout(&self, layout: &Layout) -> Result<(), GeometryError> {
+        if layout.cameras.len() > self.max_cameras {
+            return Err(GeometryError::new(
+                "cameras",
+                format!(
+                    "{} cameras, more than limits.max_cameras ({})",
+                    layout.cameras.len(),
+                    self.max_cameras
+                ),
+            ));
+        }
         let total: usize = layout.arrays.iter().map(|a| a.mics.len()).sum();
         let mut mics = 0;
         let mut span = 0.0;
@@ -163,6 +176,21 @@ pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> Result<usize, ConfigE
 mod tests {
     use super::*;
     use crate::geometry::{MicArray, Vec3};
+
+    #[test]
+    fn cameras_past_the_bound_are_named() {
+        let uca = crate::scene::sim::SimConfig::preset("uca8", &Default::default(), 1).unwrap();
+        let mut layout = crate::scene::sim::layout::build(&uca).unwrap();
+        let bounds = SizeBounds {
+            max_cameras: layout.cameras.len(),
+            ..SizeBounds::default()
+        };
+        bounds.check_layout(&layout).unwrap();
+        layout.cameras.push(layout.cameras[0].clone());
+        let e = bounds.check_layout(&layout).unwrap_err();
+        assert_eq!(e.field, "cameras");
+        assert!(e.message.contains("limits.max_cameras"), "{e}");
+    }
 
     #[test]
     fn frames_and_stream_caps_past_the_bounds_are_named() {

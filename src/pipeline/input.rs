@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::geometry::Layout;
+use crate::geometry::{Layout, MAX_COORDINATE_M};
 use crate::scene::{AudioMeasurementFrame, DetectionFrame, box_problem};
 
 /// Why an inbound message was refused.
@@ -162,11 +162,15 @@ pub fn check_device_measurements(
         }
     }
     for (i, p) in m.points.iter().enumerate() {
-        if !p.iter().all(|v| v.is_finite()) {
+        // Far beyond any room a coordinate overflows distances (and steering) to NaN.
+        if !p
+            .iter()
+            .all(|v| v.is_finite() && v.abs() <= MAX_COORDINATE_M)
+        {
             return Err(InputError::new(
                 "bad_point",
                 format!("points[{i}]"),
-                "must be finite",
+                format!("must be finite coordinates within {MAX_COORDINATE_M} m"),
             ));
         }
     }

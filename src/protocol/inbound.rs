@@ -177,8 +177,13 @@ pub(crate) mod tests {
         let mut bad = line.clone();
         bad.doas[0].elevation = Some(120.0);
         assert_eq!(device_frame(&l, &bad).unwrap_err().field, "doas[0]");
-        let mut bad = line;
+        let mut bad = line.clone();
         bad.activity = Some(2.0);
         assert_eq!(device_frame(&l, &bad).unwrap_err().field, "activity");
+        // A point far beyond any room would overflow distances to infinity.
+        let mut bad = line;
+        bad.points = vec![[1.0, 2.0, 1.5], [1e200, 0.0, 1.0]];
+        let e = device_frame(&l, &bad).unwrap_err();
+        assert_eq!((e.code, e.field.as_str()), ("bad_point", "points[1]"));
     }
 }

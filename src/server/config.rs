@@ -104,6 +104,9 @@ pub struct Limits {
     /// microphones times the frame (about 17 MB per label at 64 microphones and the default
     /// frame, 72 MB at a 4096-sample frame).
     pub max_streams: usize,
+    /// Cameras in one session's calibration: each is a sensor of every tracker step and keeps
+    /// its latest frame (of up to `max_measurements` boxes).
+    pub max_cameras: usize,
     /// Refusals of Zenoh input a session publishes on `out/events` per second (as many at
     /// once), counted apart for samples without valid credentials and for the rest. Those over
     /// the rate are still counted in the metrics; the next one published says how many were
@@ -135,6 +138,7 @@ impl Limits {
             max_pair_span_m: self.max_pair_span_m,
             max_frame: self.max_frame,
             max_streams: self.max_streams,
+            max_cameras: self.max_cameras,
         }
     }
 
@@ -161,6 +165,7 @@ impl Limits {
             ("limits.max_microphones", l.max_microphones),
             ("limits.max_frame", l.max_frame),
             ("limits.max_streams", l.max_streams),
+            ("limits.max_cameras", l.max_cameras),
         ];
         if let Some((field, _)) = positive.iter().find(|(_, v)| *v == 0) {
             return Err(ConfigError::new(*field, "must be at least 1"));
@@ -268,6 +273,7 @@ impl Default for Limits {
             max_pair_span_m: bounds.max_pair_span_m,
             max_frame: bounds.max_frame,
             max_streams: bounds.max_streams,
+            max_cameras: bounds.max_cameras,
             zenoh_refusals_per_s: 10.0,
             max_memory_mb: 4096,
             idle_timeout_s: 900.0,
