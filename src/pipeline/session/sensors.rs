@@ -46,6 +46,14 @@ impl Pipeline {
         })
     }
 
+    /// Why a sensor frame (`what`) at time `t` holding `bytes` cannot wait for its step, if it
+    /// cannot: too far ahead of the present, after its step ran, or past the backlog.
+    fn untimely(&self, what: &str, t: f64, bytes: usize) -> Option<InputError> {
+        self.too_early(t)
+            .or_else(|| self.late(what, t))
+            .or_else(|| self.over_backlog(bytes))
+    }
+
     /// Bounds what the camera and device frames waiting for their tracker step may hold
     /// together: a frame that would take them past `bytes` is refused (`backlog_full`). A
     /// server sets it, since `max_lead_s` bounds how far ahead frames may run but not how
@@ -93,18 +101,14 @@ impl Pipeline {
         if let Err(e) = input::check_detections(&self.layout, &frame, last) {
             return self.reject(e);
         }
-        if let Some(e) = self.too_early(frame.t) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.late("camera frame", frame.t) {
-            self.stats.late_frames += 1;
-            return self.reject(e);
-        }
         let min_score = self.cfg.min_box_score;
         frame
             .boxes
             .retain(|b| b.score.is_none_or(|s| s >= min_score));
-        if let Some(e) = self.over_backlog(frame.held_bytes()) {
+        if let Some(e) = self.untimely("camera frame", frame.t, frame.held_bytes()) {
+            if e.code == "late" {
+                self.stats.late_frames += 1;
+            }
             return self.reject(e);
         }
         self.stats.detection_frames_in += 1;
@@ -134,13 +138,7 @@ impl Pipeline {
         if let Err(e) = input::check_device_measurements(&self.layout, &frame, last) {
             return self.reject(e);
         }
-        if let Some(e) = self.too_early(frame.t) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.late("measurement frame", frame.t) {
-            return self.reject(e);
-        }
-        if let Some(e) = self.over_backlog(frame.held_bytes()) {
+        if let Some(e) = self.untimely("measurement frame", frame.t, frame.held_bytes()) {
             return self.reject(e);
         }
         self.stats.device_frames_in += 1;
