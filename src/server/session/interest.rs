@@ -64,7 +64,7 @@ impl Subscription {
     }
 
     /// A claim on `output` in the same session's interest, off until set.
-    pub fn claim(&self, output: Optional) -> Claim {
+    pub fn claim(&self, output: OptionalOutput) -> Claim {
         Claim::new(self.interest.clone(), output)
     }
 
@@ -85,7 +85,7 @@ impl Drop for Subscription {
 
 /// An optional output a [`Claim`] is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Optional {
+pub enum OptionalOutput {
     /// Separated audio.
     Audio,
     /// The localiser's measurements.
@@ -98,13 +98,13 @@ pub enum Optional {
 #[derive(Debug)]
 pub struct Claim {
     interest: Arc<Interest>,
-    output: Optional,
+    output: OptionalOutput,
     on: AtomicBool,
 }
 
 impl Claim {
     /// An unclaimed share of `interest` in `output`.
-    pub fn new(interest: Arc<Interest>, output: Optional) -> Self {
+    pub fn new(interest: Arc<Interest>, output: OptionalOutput) -> Self {
         Self {
             interest,
             output,
@@ -115,7 +115,7 @@ impl Claim {
     /// Claims the output (`true`) or lets it go; repeating a state changes nothing.
     pub fn set(&self, on: bool) {
         if self.on.swap(on, Ordering::AcqRel) != on {
-            let audio = self.output == Optional::Audio;
+            let audio = self.output == OptionalOutput::Audio;
             self.interest.adjust(audio, !audio, on);
         }
     }
@@ -162,12 +162,12 @@ mod tests {
     #[test]
     fn a_claim_counts_once_while_on_and_not_after_it_is_dropped() {
         let interest = Arc::new(Interest::default());
-        let audio = Claim::new(interest.clone(), Optional::Audio);
+        let audio = Claim::new(interest.clone(), OptionalOutput::Audio);
         assert!(!interest.audio() && !audio.is_on());
         audio.set(true);
         audio.set(true);
         assert!(interest.audio() && !interest.measurements());
-        let measurements = Claim::new(interest.clone(), Optional::Measurements);
+        let measurements = Claim::new(interest.clone(), OptionalOutput::Measurements);
         measurements.set(true);
         audio.set(false);
         assert!(!interest.audio() && interest.measurements());

@@ -30,7 +30,7 @@ mod interest;
 mod messages;
 mod reads;
 
-pub use interest::{Claim, Interest, Optional, Subscription};
+pub use interest::{Claim, Interest, OptionalOutput, Subscription};
 pub use messages::{ControlError, Input, Output, Rejection};
 
 /// Identifies one attached client within its session (errors are addressed to it).

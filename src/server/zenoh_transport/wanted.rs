@@ -9,7 +9,7 @@ use zenoh::Wait;
 use zenoh::pubsub::Publisher;
 
 use crate::protocol::zenoh_keys::{output_audio_keys, output_measurement_keys};
-use crate::server::session::{Claim, Optional, Output, Subscription};
+use crate::server::session::{Claim, OptionalOutput, Output, Subscription};
 
 /// The fan-out's claims on the optional outputs, kept by the probes' matching listeners.
 pub(super) struct Wanted {
@@ -23,8 +23,8 @@ impl Wanted {
     /// Declares the probes of session `id`'s optional outputs, with claims in `subscription`'s
     /// interest. A probe Zenoh refuses leaves its output claimed, published as before probes.
     pub(super) fn declare(z: &zenoh::Session, id: &str, subscription: &Subscription) -> Self {
-        let audio = Arc::new(subscription.claim(Optional::Audio));
-        let measurements = Arc::new(subscription.claim(Optional::Measurements));
+        let audio = Arc::new(subscription.claim(OptionalOutput::Audio));
+        let measurements = Arc::new(subscription.claim(OptionalOutput::Measurements));
         let mut probes = Vec::new();
         for (claim, key) in [
             (&audio, output_audio_keys(id)),
