@@ -15,14 +15,6 @@ pub struct AudioHistory {
     capacity: usize,
 }
 
-/// Samples a session's history must hold: its longest analysis `frame`, four steps of `step`
-/// samples, and the camera wait (`wait` samples), since a step that waits for its cameras
-/// still needs its own audio when it runs. The pipeline hands the audio in at most a step at
-/// a time, so nothing it was sent leaves the history before its step has run.
-pub fn history_samples(frame: usize, step: usize, wait: usize) -> usize {
-    frame + 4 * step + wait
-}
-
 impl AudioHistory {
     /// History of `channels` channels keeping at least `capacity` samples.
     pub fn new(channels: usize, capacity: usize) -> Self {

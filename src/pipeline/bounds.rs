@@ -164,11 +164,9 @@ pub fn footprint(layout: &Layout, cfg: &PipelineConfig) -> Result<usize, ConfigE
     } else {
         0
     };
-    // The audio history holds the longer frame, four steps and the camera wait of every channel.
-    let rate = f64::from(layout.sample_rate);
-    let step = (cfg.step_s * rate).ceil() as usize;
-    let wait = (cfg.camera_wait_s * rate).ceil() as usize;
-    let history = channels * super::history_samples(lf.max(sf), step, wait) * 2 * F64;
+    // The audio history of every channel, as the pipeline sizes it.
+    let clock = super::StepClock::new(layout.sample_rate, cfg.step_s);
+    let history = channels * clock.history_samples(lf.max(sf), cfg.camera_wait_s) * 2 * F64;
     Ok(localizer + separator + history + 4 * lf.max(sf) * F64 + STATE_ALLOWANCE)
 }
 

@@ -32,9 +32,13 @@ impl StepClock {
         n as f64 / self.sample_rate as f64
     }
 
-    /// Samples in `seconds` (rounded up; none for a negative time).
-    pub fn samples_in(&self, seconds: f64) -> usize {
-        (seconds.max(0.0) * f64::from(self.sample_rate)).ceil() as usize
+    /// Samples a session's audio history must hold: its longest analysis `frame`, four steps,
+    /// and the camera wait, since a step that waits for its cameras still needs its own audio
+    /// when it runs. The pipeline hands the audio in at most a step at a time, so nothing it
+    /// was sent leaves the history before its step has run.
+    pub fn history_samples(&self, frame: usize, camera_wait_s: f64) -> usize {
+        let wait = (camera_wait_s.max(0.0) * f64::from(self.sample_rate)).ceil() as usize;
+        frame + 4 * self.step_samples as usize + wait
     }
 
     /// First sample of step `k`.

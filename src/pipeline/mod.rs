@@ -18,7 +18,7 @@ mod session;
 pub mod speaking;
 pub mod stages;
 
-pub use audio_history::{AudioHistory, history_samples};
+pub use audio_history::AudioHistory;
 pub use bounds::{SizeBounds, footprint};
 pub use clock::StepClock;
 pub use config::{AudioMeasurementSource, ConfigError, LocalizedMeasurements, PipelineConfig};

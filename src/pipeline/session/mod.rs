@@ -29,7 +29,7 @@ use super::sensor_queue::SensorQueue;
 use super::separation::{SeparationDriver, SeparationFeed, SeparationHandoff};
 use super::speaking::SpeakingFilter;
 use super::stages::{SensorClutter, SensorRoutes, Timeline};
-use super::{AudioHistory, EventSink, PipelineEvent, StepClock, history_samples};
+use super::{AudioHistory, EventSink, PipelineEvent, StepClock};
 
 /// Counters of a pipeline's life, for summaries and metrics.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
@@ -115,7 +115,7 @@ impl Pipeline {
             None
         };
         let sep_frame = separation.as_ref().map_or(0, |s| s.frame_len());
-        let history = history_len(&clock, loc_frame.max(sep_frame), cfg.camera_wait_s);
+        let history = clock.history_samples(loc_frame.max(sep_frame), cfg.camera_wait_s);
         let keyed = sensors_from_layout(&layout, &cfg.track);
         let routes = SensorRoutes::new(&layout, &cfg, keyed.iter().map(|(k, _)| *k).collect());
         let mut localizer = localizer;
@@ -413,7 +413,7 @@ impl Pipeline {
             // The camera wait sizes the history.
             let loc = (self.localizer.as_ref()).map_or(cfg.localize.frame, Localizer::frame_size);
             let sep = self.separation.as_ref().map_or(0, |s| s.frame_len());
-            a.set_capacity(history_len(&self.clock, loc.max(sep), cfg.camera_wait_s));
+            a.set_capacity(self.clock.history_samples(loc.max(sep), cfg.camera_wait_s));
         }
         self.cfg = cfg;
         Ok(())
@@ -489,16 +489,6 @@ fn changed_fields(
         (a, b) if a != b => out.push(path.to_string()),
         _ => {}
     }
-}
-
-/// The samples a session's audio history holds, for its longest analysis `frame` and its camera
-/// wait ([`history_samples`]).
-fn history_len(clock: &StepClock, frame: usize, camera_wait_s: f64) -> usize {
-    history_samples(
-        frame,
-        clock.step_samples as usize,
-        clock.samples_in(camera_wait_s),
-    )
 }
 
 /// Runs `push` with a sink that collects its events.
